@@ -1,0 +1,44 @@
+# inbetween_jax -- common entry points. Everything runs inside .venv, created on first use.
+PYTHON ?= python3
+VENV   ?= .venv
+PY     := $(VENV)/bin/python
+MODEL  ?= scvae
+ARGS   ?=
+RESULTS ?= results
+
+.PHONY: help install test test-all bench bench-quick train lint-dupes clean-cache embedded-data
+
+help:
+	@echo "make install              create .venv and install the package with test extras"
+	@echo "make test                 fast test suite (CI runs exactly this)"
+	@echo "make test-all             include tests marked slow"
+	@echo "make train MODEL=scvae    train scvae|cae|interaction on the embedded data or \$$LAFAN1_DIR (ARGS='key=value ...')"
+	@echo "make bench                baseline + model tables on the embedded data or \$$LAFAN1_DIR, into $(RESULTS)/"
+
+$(PY):
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+
+$(VENV)/.installed: pyproject.toml | $(PY)
+	$(PY) -m pip install --quiet -e ".[test]"
+	touch $@
+
+install: $(VENV)/.installed
+
+test: install
+	$(PY) -m pytest -q
+
+test-all: install
+	$(PY) -m pytest -q -m "slow or not slow"
+
+train: install
+	$(PY) experiments/train.py $(MODEL) $(ARGS)
+
+bench: install
+	$(PY) experiments/bench.py --results $(RESULTS) $(ARGS)
+
+embedded-data: install
+	$(PY) experiments/make_embedded_data.py --src ../shared/data/cmu_bvh --out inbetween_jax/assets/cmu30
+
+clean-cache:
+	rm -rf .cache ~/.cache/inbetween_jax

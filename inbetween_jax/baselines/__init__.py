@@ -1,0 +1,3 @@
+"""Non-learned in-betweening baselines."""
+from inbetween_jax.baselines.interpolation import interpolate_transition  # noqa: F401
+from inbetween_jax.baselines.zero_velocity import zero_velocity_transition  # noqa: F401

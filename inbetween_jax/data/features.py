@@ -1,0 +1,73 @@
+"""Per-frame features derived from motion: foot contacts, root velocity, normalisation statistics."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+
+def foot_contacts(foot_pos: np.ndarray, velfactor: float = 0.02) -> np.ndarray:
+    """LaFAN1 contact labels: a foot joint is in contact when its squared displacement to the next
+    frame is below ``velfactor``; the last frame repeats the previous label.
+
+    foot_pos: (T, F, 3) global positions of the F foot joints. Returns (T, F) float32 in {0, 1}.
+    """
+    if foot_pos.shape[0] < 2:
+        return np.zeros(foot_pos.shape[:2], np.float32)
+    sq = np.sum((foot_pos[1:] - foot_pos[:-1]) ** 2, axis=-1)
+    c = (sq < velfactor).astype(np.float32)
+    return np.concatenate([c, c[-1:]], axis=0)
+
+
+def root_velocity(root_pos):
+    """Per-frame root displacement ``r_t - r_{t-1}`` (first frame zero): (..., T, 3) -> (..., T, 3)."""
+    vel = root_pos[..., 1:, :] - root_pos[..., :-1, :]
+    return np.concatenate([np.zeros_like(root_pos[..., :1, :]), vel], axis=-2) if isinstance(
+        root_pos, np.ndarray) else _jnp_root_velocity(root_pos)
+
+
+def _jnp_root_velocity(root_pos):
+    import jax.numpy as jnp
+    vel = root_pos[..., 1:, :] - root_pos[..., :-1, :]
+    return jnp.concatenate([jnp.zeros_like(root_pos[..., :1, :]), vel], axis=-2)
+
+
+@dataclasses.dataclass
+class Normalizer:
+    """Feature-wise z-normalisation ``(x - mean) / std`` with std floored at ``eps``.
+
+    mean, std: (D,) float32.
+    """
+
+    mean: np.ndarray
+    std: np.ndarray
+
+    @classmethod
+    def fit(cls, x: np.ndarray, eps: float = 1e-4) -> "Normalizer":
+        """Statistics over every axis but the last: x (..., D)."""
+        flat = np.asarray(x, np.float64).reshape(-1, x.shape[-1])
+        return cls(flat.mean(0).astype(np.float32), np.maximum(flat.std(0), eps).astype(np.float32))
+
+    def __call__(self, x):
+        return (x - self.mean) / self.std
+
+    def inverse(self, x):
+        return x * self.std + self.mean
+
+    def to_dict(self) -> dict:
+        return {"mean": self.mean.tolist(), "std": self.std.tolist()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Normalizer":
+        return cls(np.asarray(d["mean"], np.float32), np.asarray(d["std"], np.float32))
+
+
+def l2p_stats(global_pos: np.ndarray):
+    """Official LaFAN1 L2P statistics from training windows' global positions.
+
+    global_pos: (N, T, J, 3). Returns ``x_mean, x_std`` of shape (1, J*3, 1), as ``benchmarks.py``
+    (mean / std over windows and frames of each flattened coordinate).
+    """
+    n, t = global_pos.shape[:2]
+    x = np.asarray(global_pos, np.float64).reshape(n, t, -1).transpose(0, 2, 1)
+    return x.mean(axis=(0, 2), keepdims=True), x.std(axis=(0, 2), keepdims=True)

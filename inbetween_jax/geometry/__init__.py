@@ -1,0 +1,9 @@
+"""Pure jnp geometry: quaternions, forward / inverse kinematics, DCT."""
+from inbetween_jax.geometry.quaternion import (  # noqa: F401
+    quat_between, quat_conj, quat_fix_sign, quat_fix_sign_np, quat_from_axis_angle, quat_from_euler,
+    quat_from_forward_up, quat_from_matrix, quat_identity, quat_inv, quat_mul, quat_normalize,
+    quat_rotate, quat_slerp, quat_to_axis_angle, quat_to_euler, quat_to_forward_up, quat_to_matrix,
+    yaw_quat)
+from inbetween_jax.geometry.kinematics import (  # noqa: F401
+    bone_lengths, forward_kinematics, inverse_kinematics, local_positions)
+from inbetween_jax.geometry.dct import dct, dct_matrix, idct  # noqa: F401

@@ -1,0 +1,152 @@
+"""Plain-Python experiment configs and command-line overrides.
+
+Configs are frozen ``dataclasses`` (possibly nested) or nested ``dict``s -- no ``ml_collections``.
+Overrides are ``"dotted.key=value"`` strings; each value is parsed with the type of the field it
+replaces, so a typo or a badly typed value fails early with a one-line :class:`ConfigError`::
+
+    cfg = apply_overrides(cfg, ["model.latent_dim=64", "lr=1e-3", "use_ema=false", "dims=128,128"])
+    json.dumps(config_to_dict(cfg))   # for logging / checkpoints
+"""
+
+from __future__ import annotations
+
+import ast
+import dataclasses
+import difflib
+from typing import Any, Mapping, Sequence
+
+__all__ = ["ConfigError", "apply_overrides", "config_to_dict", "parse_value"]
+
+_TRUE = {"true", "t", "yes", "y", "on", "1"}
+_FALSE = {"false", "f", "no", "n", "off", "0"}
+_NONE = {"none", "null"}
+
+
+class ConfigError(ValueError):
+    """Raised for an unknown key or an unparsable value; the message is one line naming the key."""
+
+
+def _is_node(obj: Any) -> bool:
+    """True for containers that overrides descend into (dataclass instances and mappings)."""
+    return (dataclasses.is_dataclass(obj) and not isinstance(obj, type)) or isinstance(obj, Mapping)
+
+
+def _keys(node: Any) -> list[str]:
+    if isinstance(node, Mapping):
+        return [str(k) for k in node]
+    return [f.name for f in dataclasses.fields(node)]
+
+
+def _get(node: Any, key: str, full_key: str) -> Any:
+    keys = _keys(node)
+    if key not in keys:
+        close = difflib.get_close_matches(key, keys, n=1)
+        hint = f" (did you mean '{close[0]}'?)" if close else ""
+        raise ConfigError(f"unknown config key '{full_key}'{hint}; valid keys here: {sorted(keys)}")
+    return node[key] if isinstance(node, Mapping) else getattr(node, key)
+
+
+def _set(node: Any, key: str, value: Any) -> Any:
+    """Return a copy of ``node`` with ``key`` replaced (dataclasses via ``dataclasses.replace``)."""
+    if isinstance(node, Mapping):
+        out = dict(node)
+        out[key] = value
+        return out
+    return dataclasses.replace(node, **{key: value})
+
+
+def parse_value(text: str, existing: Any, key: str = "?") -> Any:
+    """Parse the string ``text`` with the type of ``existing``.
+
+    Rules: ``bool`` accepts true/false/yes/no/on/off/1/0 (any case); ``int`` must be an integer literal
+    (``"1e3"`` is rejected); ``float`` accepts any float literal; ``str`` is taken verbatim; ``tuple``/``list``
+    accept ``"1,2,3"``, ``"(1, 2)"`` or ``"[1, 2]"`` (``""`` or ``"()"`` is empty) with each element parsed with
+    the type of the existing first element; when the existing value is ``None`` the text is parsed as a Python
+    literal (``none``/``null`` -> None) and falls back to the plain string.
+
+    Raises:
+        ConfigError: if the text does not parse as that type (message names ``key``).
+    """
+    raw = text.strip()
+    low = raw.lower()
+    try:
+        if existing is None:
+            if low in _NONE:
+                return None
+            try:
+                return ast.literal_eval(raw)
+            except (ValueError, SyntaxError):
+                return raw
+        if isinstance(existing, bool):
+            if low in _TRUE:
+                return True
+            if low in _FALSE:
+                return False
+            raise ValueError
+        if isinstance(existing, int):
+            return int(raw)
+        if isinstance(existing, float):
+            return float(raw)
+        if isinstance(existing, str):
+            return text
+        if isinstance(existing, (tuple, list)):
+            inner = raw[1:-1] if raw[:1] + raw[-1:] in ("()", "[]") else raw
+            parts = [p for p in (s.strip() for s in inner.split(",")) if p != ""]
+            proto = existing[0] if len(existing) else None
+            items = [parse_value(p, proto, key) for p in parts]
+            return type(existing)(items)
+    except ConfigError:
+        raise
+    except (ValueError, TypeError):
+        pass
+    else:
+        raise ConfigError(f"config key '{key}' holds an unsupported type {type(existing).__name__}")
+    raise ConfigError(f"bad value for config key '{key}': expected {type(existing).__name__}, got {text!r}")
+
+
+def _override(node: Any, path: Sequence[str], text: str, full_key: str) -> Any:
+    current = _get(node, path[0], full_key)
+    if len(path) == 1:
+        if _is_node(current):
+            raise ConfigError(f"config key '{full_key}' is a group, not a value; set one of {_keys(current)}")
+        return _set(node, path[0], parse_value(text, current, full_key))
+    if not _is_node(current):
+        raise ConfigError(f"unknown config key '{full_key}': '{path[0]}' is a value, not a group")
+    return _set(node, path[0], _override(current, path[1:], text, full_key))
+
+
+def apply_overrides(config: Any, overrides: Sequence[str]) -> Any:
+    """Return a copy of ``config`` with ``["a.b=3", "lr=1e-3", "flag=false"]`` applied in order.
+
+    Args:
+        config: frozen dataclass or (nested) dict; it is never modified in place.
+        overrides: ``"dotted.key=value"`` strings (values may themselves contain ``=``).
+    Returns:
+        A new config of the same structure.
+    Raises:
+        ConfigError: (one line, naming the key) on a malformed override, unknown key or bad value.
+    """
+    for item in overrides:
+        if "=" not in item:
+            raise ConfigError(f"override {item!r} is not of the form key=value")
+        key, text = item.split("=", 1)
+        key = key.strip()
+        if not key or any(p == "" for p in key.split(".")):
+            raise ConfigError(f"override {item!r} has an empty key")
+        config = _override(config, key.split("."), text, key)
+    return config
+
+
+def config_to_dict(config: Any) -> Any:
+    """JSON-serialisable nested dict of a config (tuples become lists, unknown objects ``str``)."""
+    if dataclasses.is_dataclass(config) and not isinstance(config, type):
+        return {f.name: config_to_dict(getattr(config, f.name)) for f in dataclasses.fields(config)}
+    if isinstance(config, Mapping):
+        return {str(k): config_to_dict(v) for k, v in config.items()}
+    if isinstance(config, (list, tuple)):
+        return [config_to_dict(v) for v in config]
+    if config is None or isinstance(config, (bool, int, float, str)):
+        return config
+    if hasattr(config, "item") and getattr(config, "shape", None) == ():
+        return config.item()  # numpy / jax scalar
+    return str(config)

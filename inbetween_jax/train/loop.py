@@ -1,0 +1,182 @@
+"""Generic, model-agnostic training driver with bitwise-reproducible resume.
+
+Every model provides three pure pieces and the driver does the rest (jit, PRNG, checkpoints, logs)::
+
+    init_fn(key) -> state                        # pytree of arrays / PRNG keys (params, opt_state, ...)
+    train_step_fn(state, batch, key) -> (state, metrics)   # pure; metrics: dict of scalar arrays
+    batch_fn(step, key) -> batch                 # deterministic in (step, key)
+
+Flax NNX models: ``graphdef, params = nnx.split(model)`` and close over ``graphdef`` in the step
+function; the state pytree must only hold arrays (``nnx.State`` / optax states are fine).
+
+Randomness.  ``base = jax.random.key(seed)`` is split once into ``init_key, data_base, train_base``.
+Step ``i`` (0-based: the state has ``i`` updates applied) uses
+``batch_fn(i, jax.random.fold_in(data_base, i))`` and ``train_step_fn(state, batch, fold_in(train_base, i))``.
+No key is carried across the Python loop, so a resumed run sees exactly the batches and keys of an
+uninterrupted run, and (on the same machine / XLA build) reproduces it bitwise.
+
+Step numbering in logs and checkpoints: ``step = n`` means ``n`` updates have been applied; a
+checkpoint at step 10 resumes with ``i = 10`` and logs steps 11, 12, ...
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import warnings
+from typing import Any, Callable
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .checkpoint import Checkpointer
+from .config import config_to_dict
+from .logging import MetricLogger, ProgressBar
+
+__all__ = ["enable_compilation_cache", "default_cache_dir", "make_step_fn", "run_training"]
+
+CACHE_ENV = "INBETWEEN_JAX_CACHE"
+
+
+def default_cache_dir() -> str:
+    """``$INBETWEEN_JAX_CACHE/jax_cache`` (default root ``~/.cache/inbetween_jax``), absolute.
+
+    ``$INBETWEEN_JAX_CACHE`` is the package-wide cache root (``data.datasets`` keeps its window caches
+    there too), so compiled executables live in their own ``jax_cache`` sub-folder.
+    """
+    root = os.environ.get(CACHE_ENV) or os.path.join("~", ".cache", "inbetween_jax")
+    return os.path.abspath(os.path.join(os.path.expanduser(root), "jax_cache"))
+
+
+def enable_compilation_cache(cache_dir: str | None = None, min_compile_time_secs: float = 0.1) -> str:
+    """Turn on JAX's persistent compilation cache (works on CPU and GPU); returns the cache folder.
+
+    Only the JAX config is changed (the one piece of global state this package touches).  Call it
+    before the first compilation: JAX fixes the cache location when it first uses the cache.
+    """
+    path = os.path.abspath(os.path.expanduser(cache_dir)) if cache_dir else default_cache_dir()
+    os.makedirs(path, exist_ok=True)
+    jax.config.update("jax_compilation_cache_dir", path)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", float(min_compile_time_secs))
+    return path
+
+
+def _strong(x: Any) -> Any:
+    """Leaf -> jax.Array without weak type, so init / restored / stepped states share one jit signature."""
+    if isinstance(x, jax.Array) and jax.dtypes.issubdtype(x.dtype, jax.dtypes.prng_key):
+        return x
+    return jnp.asarray(x, dtype=jnp.result_type(x))
+
+
+def _signature(tree: Any) -> Any:
+    return jax.tree.map(lambda x: (tuple(jnp.shape(x)), jnp.result_type(x)), tree)
+
+
+def make_step_fn(train_step_fn: Callable, train_base: jax.Array) -> Callable:
+    """Jit ``(state, batch, i) -> (state, metrics)`` with the step key ``fold_in(train_base, i)``.
+
+    The state argument is donated; the returned state must keep the input's structure, shapes and
+    dtypes (checked at trace time, otherwise every step would recompile).
+    """
+
+    def step(state, batch, i):
+        key = jax.random.fold_in(train_base, i)
+        new_state, metrics = train_step_fn(state, batch, key)
+        new_state = jax.tree.map(_strong, new_state)
+        if jax.tree.structure(new_state) != jax.tree.structure(state) or _signature(new_state) != _signature(state):
+            raise TypeError("train_step_fn must return a state with the same structure, shapes and dtypes as "
+                            f"its input; got {_signature(new_state)} for {_signature(state)}")
+        return new_state, dict(metrics)
+
+    return jax.jit(step, donate_argnums=0)
+
+
+def _check_finite(step: int, metrics: dict) -> None:
+    for name, value in metrics.items():
+        v = np.asarray(value)
+        if np.issubdtype(v.dtype, np.floating) and not np.all(np.isfinite(v)):
+            raise FloatingPointError(f"non-finite loss '{name}' at step {step}")
+
+
+def run_training(init_fn: Callable[[jax.Array], Any],
+                 train_step_fn: Callable[[Any, Any, jax.Array], tuple[Any, dict]],
+                 batch_fn: Callable[[int, jax.Array], Any],
+                 config: Any, run_dir: str | os.PathLike, num_steps: int, log_every: int = 100,
+                 ckpt_every: int = 1000, seed: int = 0, *, max_to_keep: int = 3, progress: bool = True,
+                 compilation_cache: bool = True) -> tuple[Any, list[dict]]:
+    """Train for ``num_steps`` total updates, resuming from ``run_dir/checkpoints`` when possible.
+
+    Args:
+        init_fn: ``key -> state`` (pytree of arrays / typed PRNG keys).
+        train_step_fn: pure ``(state, batch, key) -> (state, metrics)``; ``metrics`` maps names to
+            scalar arrays.  Jitted once by the driver with the state donated.
+        batch_fn: ``(step: int, key) -> batch`` (pytree of arrays), deterministic in its arguments.
+        config: dataclass / dict, stored as JSON in every checkpoint.
+        run_dir: run folder: ``checkpoints/``, ``metrics.csv``, ``metrics.jsonl``.
+        num_steps: total number of updates (including those done before a resume).
+        log_every: log (and check finiteness of) metrics every this many steps, and at the last step.
+        ckpt_every: checkpoint every this many steps, and at the last step.
+        seed: base PRNG seed (see module docstring for how keys are derived).
+        max_to_keep: checkpoints kept on disk.  progress: show a tqdm bar.
+        compilation_cache: call :func:`enable_compilation_cache` first.
+    Returns:
+        ``(state, logged)``: the final state and the rows logged *by this call*,
+        each ``{"step": n, name: float, ...}``.
+    Raises:
+        FloatingPointError: ``"non-finite loss 'name' at step N"`` for the first NaN/inf metric; all
+            metrics are checked (in step order) before any checkpoint, so no bad state is saved.
+    """
+    if compilation_cache:
+        enable_compilation_cache()
+    run_dir = os.path.abspath(os.fspath(run_dir))
+    log_every, ckpt_every = max(1, int(log_every)), max(1, int(ckpt_every))
+    init_key, data_base, train_base = jax.random.split(jax.random.key(seed), 3)
+
+    ckpt = Checkpointer(os.path.join(run_dir, "checkpoints"), max_to_keep=max_to_keep, save_every=ckpt_every)
+    logger = bar = None
+    try:
+        start = ckpt.latest_step()
+        if start is None:
+            start = 0
+            state = jax.tree.map(_strong, init_fn(init_key))
+        else:
+            extra = ckpt.restore_extra(start)
+            if extra.get("seed", seed) != seed:
+                warnings.warn(f"resuming {run_dir} (seed {extra.get('seed')}) with seed {seed}: "
+                              "the run will not reproduce an uninterrupted one", stacklevel=2)
+            state = ckpt.restore(start, jax.eval_shape(init_fn, init_key))
+            state = jax.tree.map(_strong, state)
+
+        logger = MetricLogger(run_dir, resume_step=start)
+        bar = ProgressBar(num_steps, initial=start, disable=not progress)
+        step_fn = make_step_fn(train_step_fn, train_base)
+        config_json = config_to_dict(config)
+        logged: list[dict] = []
+        pending: list[tuple[int, dict]] = []  # device metrics not yet checked (avoids a sync per step)
+
+        for i in range(start, num_steps):
+            batch = batch_fn(i, jax.random.fold_in(data_base, i))
+            state, metrics = step_fn(state, batch, np.int32(i))
+            n = i + 1
+            pending.append((n, metrics))
+            is_last = n == num_steps
+            do_log, do_ckpt = n % log_every == 0 or is_last, n % ckpt_every == 0 or is_last
+            if do_log or do_ckpt:
+                host = jax.device_get(pending)
+                pending = []
+                for s, m in host:
+                    _check_finite(s, m)
+                if do_log:
+                    logged.append(logger.log(n, host[-1][1]))
+                bar.update(len(host), metrics=host[-1][1] if do_log else None)
+            if do_ckpt:
+                ckpt.save(n, state, extra_json={"step": n, "seed": seed, "data": {"next_step": n},
+                                                "config": config_json}, force=True)
+        return state, logged
+    finally:
+        if bar is not None:
+            bar.close()
+        if logger is not None:
+            logger.close()
+        ckpt.close()
