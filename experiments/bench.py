@@ -88,4 +88,8 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except (OSError, ValueError) as err:  # BVHError is a ValueError: one line naming file and problem
+        print(f"error: {err}", file=sys.stderr)
+        sys.exit(2)

@@ -21,4 +21,8 @@ def main(argv):
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    try:
+        sys.exit(main(sys.argv[1:]))
+    except (OSError, ValueError) as err:  # bad data / config: one line, no traceback
+        print(f"error: {err}", file=sys.stderr)
+        sys.exit(2)

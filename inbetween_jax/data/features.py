@@ -32,6 +32,15 @@ def _jnp_root_velocity(root_pos):
     return jnp.concatenate([jnp.zeros_like(root_pos[..., :1, :]), vel], axis=-2)
 
 
+def offsets_to_target(root_pos, local_quats, target_root, target_quats):
+    """S-CVAE / RMIB offset features: element-wise differences to the target keyframe.
+
+    root_pos: (..., T, 3); local_quats: (..., T, J, 4); target_root: (..., 3); target_quats: (..., J, 4).
+    Returns (root offset (..., T, 3), quaternion offsets (..., T, J, 4)) = target - current.
+    """
+    return target_root[..., None, :] - root_pos, target_quats[..., None, :, :] - local_quats
+
+
 @dataclasses.dataclass
 class Normalizer:
     """Feature-wise z-normalisation ``(x - mean) / std`` with std floored at ``eps``.
