@@ -165,3 +165,24 @@ def test_write_refuses_nan_and_leaves_nothing(tmp_path):
     with pytest.raises(ValueError, match="non-finite"):
         write_bvh(out, m)
     assert not out.exists() and not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("source", ["embedded", "lafan1"])
+def test_written_bvh_read_by_independent_reader(tmp_path, source):
+    """``bvhio`` (an unrelated BVH implementation) sees the same world joint positions as our FK."""
+    bvhio = pytest.importorskip("bvhio")
+    path = CMU_FILE if source == "embedded" else os.path.join(LAFAN1_DIR, "walk4_subject1.bvh")
+    if not os.path.exists(path):
+        pytest.skip("LaFAN1 not available")
+    m = read_bvh(path, 0, 30)
+    out = tmp_path / "written.bvh"
+    write_bvh(out, m)
+    _, gp = forward_kinematics(m.local_quats, m.local_pos, m.skeleton.parents)
+    root = bvhio.readAsHierarchy(str(out))
+    joints = [j for j, _, _ in root.layout() if j.Name in m.skeleton.names]
+    assert len(joints) == m.skeleton.num_joints
+    idx = [m.skeleton.index(j.Name) for j in joints]
+    for frame in (0, 13, 29):
+        root.loadPose(frame)
+        theirs = np.array([list(j.PositionWorld) for j in joints])
+        np.testing.assert_allclose(theirs, gp[frame, idx], atol=1e-3)
