@@ -67,13 +67,21 @@ def main(argv=None):
     results = {"source": source, "windows": len(bench), "official": official, "table1": table1, "models": {}}
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     for model in [m for m in args.models.split(",") if m]:
+        # scvae / interaction: runs/<model>; cae: the folder of runs (runs/cae-<variant>, baselines included)
         ckpt = os.path.join(args.ckpt_root, model)
+        if model == "cae" and not os.path.isdir(ckpt) and os.path.isdir(args.ckpt_root) and any(
+                d.startswith("cae-") for d in os.listdir(args.ckpt_root)):
+            ckpt = args.ckpt_root
         if not os.path.exists(os.path.join(os.path.dirname(__file__), f"bench_{model}.py")):
             continue
         if not os.path.isdir(ckpt):
             sections.append(f"**{model}**: skipped, no checkpoint in `{ckpt}` (run `make train MODEL={model}`).")
             continue
-        out = importlib.import_module(f"bench_{model}").run(source, args.results, ckpt, args.quick)
+        try:
+            out = importlib.import_module(f"bench_{model}").run(source, args.results, ckpt, args.quick)
+        except (OSError, ValueError) as err:  # e.g. a checkpoint trained on another skeleton
+            sections.append(f"**{model}**: skipped, {err}")
+            continue
         results["models"][model] = out
         sections.append(out.get("markdown", "") if isinstance(out, dict) else str(out))
     sections.append(f"Benchmark wall time: {time.time() - t0:.1f} s.")

@@ -1,0 +1,1 @@
+"""Experiment configurations, flax-examples style: ``get_config(name)`` per model."""

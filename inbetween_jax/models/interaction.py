@@ -1,0 +1,188 @@
+"""Cross-space interaction in-betweening (Zhang et al. 2025) in JAX / flax NNX.
+
+One autoregressive step for both characters (Sec. 4.1)::
+
+    window (B, 2, T, J, 9) in each character's own keyframe space, keypose (B, 2, J, 9)
+    pad with the last frame to T + l, DCT over time (K coefficients)            -> (2B, J, K, 9)
+    Enc (conv1d + GCN, keypose as extra node input): features h, coarse DCT     (Eq. 1)
+    coarse frames -> other character's keyframe space -> its per-frame root space (Eq. 2, T)
+    relative features -> DCT -> encoder -> mu, logvar -> z -> FiLM gamma, beta   (Eq. 3)
+    h_mod = h * (1 + gamma) + beta; Dec (same architecture) -> residual DCT -> IDCT (Eq. 4)
+
+Parameters are plain ``nnx.State`` pytrees (``nnx.split``); every function here is pure and jit-able.
+:func:`rollout` runs the inference autoregression with ``lax.scan`` and stops once both characters are within
+``stop_threshold`` of their keyposes; :func:`sample_rollouts` draws diverse samples by ``vmap`` over keys.
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from flax import nnx
+
+from inbetween_jax.geometry import dct, idct
+from inbetween_jax.models.interaction_data import apply_space, root_space, to_space
+from inbetween_jax.models.interaction_nets import (ConvGCN, Discriminator, FiLM, PeriodicAE, Refiner, film,
+                                                   reparameterize)
+
+
+class Generator(nnx.Module):
+    """The cross-space in-betweening network (Enc, relative encoder + VAE heads, FiLM, Dec)."""
+
+    def __init__(self, num_joints: int, cfg, *, rngs: nnx.Rngs):
+        m = cfg.model
+        K, H = m.dct_coeffs, m.hidden
+        self.enc = ConvGCN(num_joints, K, 9, 9, H, K * 9, m.conv_channels, m.gcn_layers, rngs=rngs)
+        if m.interaction:
+            self.rel_enc = ConvGCN(num_joints, K, 9, 0, H, 2 * m.latent, m.conv_channels, m.gcn_layers, rngs=rngs)
+            self.film = FiLM(m.latent, H, rngs=rngs)
+        self.dec = ConvGCN(num_joints, K, 9, H, H, K * 9, m.conv_channels, m.gcn_layers, rngs=rngs)
+
+
+@dataclasses.dataclass(frozen=True)
+class Nets:
+    """Graph definitions (static) of the four parameter groups."""
+    gen: Any
+    ref: Any
+    pae: Any
+    disc: Any
+
+
+def pjd_channels(num_joints: int, cfg) -> int:
+    j = len(cfg.model.pjd_joints) or num_joints
+    return j * j
+
+
+def init_params(key, num_joints: int, cfg):
+    """-> (Nets graphdefs, params dict {gen, ref, pae, disc} of nnx.State)."""
+    ks = jax.random.split(key, 4)
+    m, d = cfg.model, cfg.data
+    mods = dict(
+        gen=Generator(num_joints, cfg, rngs=nnx.Rngs(ks[0])),
+        ref=Refiner(num_joints, d.n_pred, m.refiner_hidden, m.refiner_latent, m.conv_channels, m.gcn_layers,
+                    rngs=nnx.Rngs(ks[1])),
+        pae=PeriodicAE(pjd_channels(num_joints, cfg), m.pjd_frames, m.pae_channels, m.pae_hidden,
+                       rngs=nnx.Rngs(ks[2])),
+        disc=Discriminator(m.pjd_frames, m.pae_channels, m.disc_hidden, rngs=nnx.Rngs(ks[3])))
+    split = {k: nnx.split(v) for k, v in mods.items()}
+    return Nets(**{k: v[0] for k, v in split.items()}), {k: v[1] for k, v in split.items()}
+
+
+def _to_nodes(c):
+    """(B, 2, K, J, C) -> (2B, J, K, C)."""
+    B, _, K, J, C = c.shape
+    return jnp.moveaxis(c.reshape(2 * B, K, J, C), 1, 2)
+
+
+def _from_nodes(c, B):
+    """(2B, J, K, C) -> (B, 2, K, J, C)."""
+    c = jnp.moveaxis(c, 2, 1)
+    return c.reshape((B, 2) + c.shape[1:])
+
+
+def cross_space(coarse, rel_R, rel_t, forward_axis):
+    """Eq. 2: each character's frames in the other character's per-frame root space.
+
+    coarse (B, 2, T, J, 9) in own keyframe spaces; rel_R (B, 2, 3, 3), rel_t (B, 2, 3) map character c's key
+    space to the other's.  Returns (B, 2, T, J, 9).
+    """
+    other = coarse[:, ::-1]
+    in_other = apply_space(coarse, rel_R[:, :, None], rel_t[:, :, None])
+    oR, ot = root_space(other[..., 0, :], forward_axis)                    # (B, 2, T, 3, 3), (B, 2, T, 3)
+    return to_space(in_other, oR, ot)
+
+
+def cross_space_inverse(rel, other, rel_R, rel_t, forward_axis):
+    """Inverse of :func:`cross_space` given the other character's frames ``other`` (B, 2, T, J, 9)."""
+    oR, ot = root_space(other[..., 0, :], forward_axis)
+    in_other = apply_space(rel, oR, ot)
+    Rt = jnp.swapaxes(rel_R, -1, -2)
+    return apply_space(in_other, Rt[:, :, None], -jnp.einsum("...ij,...j->...i", Rt, rel_t)[:, :, None])
+
+
+def generator_step(gen_def, gen_params, window, keypose, rel_R, rel_t, key, cfg, forward_axis):
+    """One prediction step for both characters.
+
+    window (B, 2, T, J, 9), keypose (B, 2, J, 9), rel_R (B, 2, 3, 3), rel_t (B, 2, 3), key: PRNG key.
+    Returns dict: pred (B, 2, l, J, 9), coarse (B, 2, l, J, 9), mu / logvar (B, 2, J, Z) (zeros when
+    interaction modelling is off).
+    """
+    gen = nnx.merge(gen_def, gen_params)
+    m, d = cfg.model, cfg.data
+    B, _, T, J, _ = window.shape
+    L = T + d.n_pred
+    pad = jnp.concatenate([window, jnp.repeat(window[:, :, -1:], d.n_pred, axis=2)], axis=2)
+    c_in = _to_nodes(dct(pad, axis=2, num_coeffs=m.dct_coeffs))           # (2B, J, K, 9)
+    K = c_in.shape[2]
+    h, res = gen.enc(c_in, keypose.reshape(2 * B, J, 9))
+    coarse_c = c_in + res.reshape(2 * B, J, K, 9)
+    coarse = idct(_from_nodes(coarse_c, B), n=L, axis=2)                   # (B, 2, L, J, 9)
+    if m.interaction:
+        rel = cross_space(coarse, rel_R, rel_t, forward_axis)
+        _, ml = gen.rel_enc(_to_nodes(dct(rel, axis=2, num_coeffs=m.dct_coeffs)))
+        mu, logvar = jnp.split(ml, 2, axis=-1)
+        logvar = jnp.clip(logvar, -8.0, 4.0)
+        z = reparameterize(mu, logvar, key)
+        h = film(h, *gen.film(z))
+        mu, logvar = mu.reshape(B, 2, J, -1), logvar.reshape(B, 2, J, -1)
+    else:
+        mu = logvar = jnp.zeros((B, 2, J, 1), window.dtype)
+    _, res2 = gen.dec(coarse_c, h)
+    final_c = coarse_c + res2.reshape(2 * B, J, K, 9)
+    final = idct(_from_nodes(final_c, B), n=L, axis=2)
+    return dict(pred=final[:, :, T:], coarse=coarse[:, :, T:], mu=mu, logvar=logvar)
+
+
+def refine(ref_def, ref_params, pred):
+    """Motion refiner on a predicted segment: (B, 2, l, J, 9) -> (B, 2, l, J, 9)."""
+    ref = nnx.merge(ref_def, ref_params)
+    B = pred.shape[0]
+    return ref(pred.reshape((2 * B,) + pred.shape[2:])).reshape(pred.shape)
+
+
+def keypose_distance(frame, keypose):
+    """Mean joint distance of a frame to the keypose per character: (B, 2, J, 9) x2 -> (B, 2)."""
+    return jnp.mean(jnp.linalg.norm(frame[..., :3] - keypose[..., :3], axis=-1), axis=-1)
+
+
+def rollout(nets: Nets, params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, num_steps: int,
+            use_refiner=None, threshold=None):
+    """Inference autoregression with ``lax.scan`` over ``num_steps`` steps of l frames.
+
+    Once both characters' mean joint distance to their keyposes is below ``threshold`` (model units) after
+    a step, the sample is done: later steps repeat its last frame.  Inputs as :func:`generator_step`.
+    Returns (frames (B, 2, num_steps * l, J, 9), length (B,) int32 = frames generated before stopping;
+    ``num_steps * l`` when the threshold was never reached).
+    """
+    use_refiner = cfg.model.refiner if use_refiner is None else use_refiner
+    threshold = cfg.model.stop_threshold if threshold is None else threshold
+    l = cfg.data.n_pred
+    B = window.shape[0]
+
+    def step(carry, k):
+        win, done, length = carry
+        out = generator_step(nets.gen, params["gen"], win, keypose, rel_R, rel_t, k, cfg, forward_axis)
+        pred = out["pred"]
+        if use_refiner:
+            pred = refine(nets.ref, params["ref"], pred)
+        hold = jnp.repeat(win[:, :, -1:], l, axis=2)
+        pred = jnp.where(done[:, None, None, None, None], hold, pred)
+        length = length + jnp.where(done, 0, l)
+        reached = jnp.all(keypose_distance(pred[:, :, -1], keypose) < threshold, axis=1)
+        win = jnp.concatenate([win[:, :, l:], pred], axis=2)
+        return (win, done | reached, length), pred
+
+    init = (window, jnp.zeros((B,), bool), jnp.zeros((B,), jnp.int32))
+    (_, _, length), preds = jax.lax.scan(step, init, jax.random.split(key, num_steps))
+    frames = jnp.moveaxis(preds, 0, 2)                                      # (B, 2, S, l, J, 9)
+    return frames.reshape(frames.shape[:2] + (num_steps * l,) + frames.shape[4:]), length
+
+
+def sample_rollouts(nets: Nets, params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, num_steps: int,
+                    num_samples: int, **kw):
+    """``num_samples`` diverse rollouts by ``vmap`` over keys: (S, B, 2, num_steps * l, J, 9), (S, B)."""
+    keys = jax.random.split(key, num_samples)
+    return jax.vmap(lambda k: rollout(nets, params, window, keypose, rel_R, rel_t, k, cfg, forward_axis,
+                                      num_steps, **kw))(keys)

@@ -1,0 +1,339 @@
+"""Two-character data for the interaction in-betweening model: paired BVH loading, constructed
+pairings, keyframe-space sampling and mirroring.
+
+Representation: per character and frame, J joints x 9 channels = global position (3) + global
+rotation as forward / up vectors (6, :func:`quat_to_forward_up`).  Feature arrays are ``(..., T, J, 9)``.
+
+Rigid "spaces" are yaw rotations about +Y plus a translation, stored as ``(R, t)`` with ``R`` (..., 3, 3)
+and ``t`` (..., 3); :func:`apply_space` maps space coordinates to the parent frame (``R x + t``) and
+:func:`to_space` is its inverse.  A keyframe space has its origin at the keyframe root's floor
+projection and its +Z axis along the keyframe character's facing direction.
+
+Real paired captures: ``load_pair(a, b)`` (two BVH files sharing frame timing) and
+``find_pair_files(folder)`` (``<name>_A.bvh`` / ``<name>_B.bvh`` or a ``pairs.txt`` list of
+``a.bvh b.bvh`` lines).  Where none exist, :func:`construct_pairs` pairs single-person clips of the same
+choreography (LaFAN1 ``<action>_subjectN``) or consecutive clips, placing the second performer at a fixed
+floor offset facing the first, time-aligned by frame index.  Such pairs are flagged ``constructed=True``.
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+import re
+from typing import Optional, Sequence
+
+import numpy as np
+
+from inbetween_jax.data import read_bvh
+from inbetween_jax.data.skeleton import Skeleton
+from inbetween_jax.geometry import forward_kinematics, quat_to_forward_up
+
+LAFAN_NAME = re.compile(r"^(?P<action>.+)_(?P<subject>subject\d+)\.bvh$")
+LAFAN_FORWARD = (0.0, 1.0, 0.0)
+
+
+@dataclasses.dataclass
+class PairedMotion:
+    """Two characters on one skeleton sharing frame timing.
+
+    feats: (2, T, J, 9) float32 world-space features (positions in file units, cm for LaFAN1/CMU).
+    """
+    feats: np.ndarray
+    skeleton: Skeleton
+    forward_axis: np.ndarray
+    fps: float
+    name: str
+    constructed: bool
+    split: Optional[str] = None    # fixed split of the pair (train / test); None: temporal split
+
+    @property
+    def num_frames(self) -> int:
+        return int(self.feats.shape[1])
+
+    def slice(self, start: int, stop: int) -> "PairedMotion":
+        return dataclasses.replace(self, feats=self.feats[:, start:stop])
+
+
+# ----------------------------------------------------------------------------- rigid spaces (np / jnp)
+def _xp(x):
+    import jax.numpy as jnp
+    return np if isinstance(x, np.ndarray) else jnp
+
+
+def yaw_matrix(yaw):
+    """Rotation about +Y by ``yaw`` (radians), sending +Z to (sin yaw, 0, cos yaw): (...) -> (..., 3, 3)."""
+    xp = _xp(yaw)
+    c, s = xp.cos(yaw), xp.sin(yaw)
+    z, o = xp.zeros_like(yaw), xp.ones_like(yaw)
+    return xp.stack([xp.stack([c, z, s], -1), xp.stack([z, o, z], -1), xp.stack([-s, z, c], -1)], -2)
+
+
+def apply_space(feat, R, t):
+    """Space -> parent coordinates: positions ``R p + t``, forward/up ``R v``.
+
+    feat (..., J, 9); R (..., 3, 3) and t (..., 3) broadcast against feat's leading dims (without J).
+    """
+    xp = _xp(feat)
+    R = R[..., None, :, :]
+    v = feat.reshape(feat.shape[:-1] + (3, 3))                # (..., J, 3 vectors, 3)
+    out = xp.einsum("...ij,...kj->...ki", R, v)
+    out = out + xp.stack([t, xp.zeros_like(t), xp.zeros_like(t)], -2)[..., None, :, :]
+    return out.reshape(feat.shape)
+
+
+def to_space(feat, R, t):
+    """Inverse of :func:`apply_space`: parent -> space coordinates. Same shapes."""
+    xp = _xp(feat)
+    Rt = xp.swapaxes(R, -1, -2)
+    return apply_space(feat, Rt, -xp.einsum("...ij,...j->...i", Rt, t))
+
+
+def compose_spaces(Ra, ta, Rb, tb):
+    """``(Rb, tb)``-space -> ``(Ra, ta)``'s parent, when ``(Rb, tb)`` is expressed in space a: R (..,3,3), t (..,3)."""
+    xp = _xp(Ra)
+    return Ra @ Rb, xp.einsum("...ij,...j->...i", Ra, tb) + ta
+
+
+def relative_space(Ra, ta, Rb, tb):
+    """The map from space a to space b (both given in one parent frame): ``x_b = R x_a + t``."""
+    xp = _xp(Ra)
+    Rbt = xp.swapaxes(Rb, -1, -2)
+    return Rbt @ Ra, xp.einsum("...ij,...j->...i", Rbt, ta - tb)
+
+
+def facing_yaw(root_feat, forward_axis):
+    """Heading angle of a character from its root features: (..., 9) -> (...) radians (0 = facing +Z).
+
+    The root's local ``forward_axis`` (3,) is rotated by the root rotation rebuilt from forward/up.
+    """
+    xp = _xp(root_feat)
+    z = root_feat[..., 3:6]
+    z = z / (xp.linalg.norm(z, axis=-1, keepdims=True) + 1e-8)
+    y = root_feat[..., 6:9] - xp.sum(root_feat[..., 6:9] * z, -1, keepdims=True) * z
+    y = y / (xp.linalg.norm(y, axis=-1, keepdims=True) + 1e-8)
+    x = xp.cross(y, z)
+    fa = xp.asarray(forward_axis, root_feat.dtype)
+    f = x * fa[0] + y * fa[1] + z * fa[2]
+    return xp.arctan2(f[..., 0], f[..., 2])
+
+
+def root_space(root_feat, forward_axis):
+    """Floor-projected root space ``(R, t)`` of root features (..., 9): R (..., 3, 3), t (..., 3)."""
+    xp = _xp(root_feat)
+    R = yaw_matrix(facing_yaw(root_feat, forward_axis))
+    t = root_feat[..., :3] * xp.asarray([1.0, 0.0, 1.0], root_feat.dtype)
+    return R, t
+
+
+# ----------------------------------------------------------------------------- loading
+def motion_features(motion) -> np.ndarray:
+    """World features of a :class:`Motion`: (T, J, 9) float64 (FK positions + forward/up)."""
+    gq, gp = forward_kinematics(motion.local_quats, motion.local_pos, motion.skeleton.parents)
+    return np.concatenate([gp, quat_to_forward_up(gq)], axis=-1)
+
+
+def _forward_axis(skel: Skeleton) -> np.ndarray:
+    if skel.names and skel.names[0] == "Hips" and "LeftToe" in skel.names:  # LaFAN1 naming
+        return np.asarray(LAFAN_FORWARD)
+    return np.asarray(skel.forward_axis(), np.float64)
+
+
+def load_pair(path_a: str, path_b: str, name: Optional[str] = None) -> PairedMotion:
+    """Two BVH files of one interaction sharing frame timing -> :class:`PairedMotion` (real pair).
+
+    The files must share skeleton topology and frame rate; the longer one is cut to the shorter.
+    """
+    ma, mb = read_bvh(path_a), read_bvh(path_b)
+    if not ma.skeleton.same_topology(mb.skeleton):
+        raise ValueError(f"{path_a} and {path_b} use different skeletons")
+    if abs(ma.frame_time - mb.frame_time) > 1e-6:
+        raise ValueError(f"{path_a} ({ma.fps:.3f} fps) and {path_b} ({mb.fps:.3f} fps) differ in frame rate")
+    n = min(ma.num_frames, mb.num_frames)
+    feats = np.stack([motion_features(ma)[:n], motion_features(mb)[:n]]).astype(np.float32)
+    name = name or os.path.splitext(os.path.basename(path_a))[0]
+    return PairedMotion(feats, ma.skeleton, _forward_axis(ma.skeleton), float(ma.fps), name, False)
+
+
+def find_pair_files(folder: str) -> list:
+    """Real pairs in ``folder``: ``pairs.txt`` (``a.bvh b.bvh`` per line, relative to the folder) or
+    ``<name>_A.bvh`` / ``<name>_B.bvh``.  Returns ``[(name, path_a, path_b)]`` (empty when none)."""
+    listing = os.path.join(folder, "pairs.txt")
+    if os.path.exists(listing):
+        out = []
+        with open(listing) as f:
+            for line in f:
+                parts = line.split("#", 1)[0].split()
+                if len(parts) == 2:
+                    a, b = (os.path.join(folder, p) for p in parts)
+                    out.append((os.path.splitext(parts[0])[0], a, b))
+        return out
+    files = set(os.listdir(folder))
+    return [(f[:-6], os.path.join(folder, f), os.path.join(folder, f[:-6] + "_B.bvh"))
+            for f in sorted(files) if f.endswith("_A.bvh") and f[:-6] + "_B.bvh" in files]
+
+
+def place_facing(feat_a: np.ndarray, feat_b: np.ndarray, forward_axis, distance: float) -> np.ndarray:
+    """Move clip B rigidly so that at frame 0 its root is ``distance`` in front of A's root (floor plane)
+    and faces A.  feat_a, feat_b: (T, J, 9) -> B's new features (T, J, 9)."""
+    Ra, ta = root_space(feat_a[0, 0], forward_axis)
+    Rb, tb = root_space(feat_b[0, 0], forward_axis)
+    target_t = ta + Ra @ np.array([0.0, 0.0, distance])
+    target_R = Ra @ yaw_matrix(np.asarray(np.pi))
+    local = to_space(feat_b, Rb, tb)
+    return apply_space(local, target_R, target_t)
+
+
+def _group_pairs(paths: Sequence[str]) -> list:
+    """Consecutive pairs of clips with the same choreography (LaFAN1 ``<action>_subjectN``), else of
+    consecutive files: ``[(name, path_a, path_b)]``."""
+    groups: dict = {}
+    for p in sorted(paths):
+        m = LAFAN_NAME.match(os.path.basename(p))
+        groups.setdefault(m.group("action") if m else None, []).append(p)
+    out = []
+    for action, items in sorted(groups.items(), key=lambda kv: str(kv[0])):
+        for a, b in zip(items[:-1], items[1:]):
+            sa = os.path.splitext(os.path.basename(a))[0]
+            sb = os.path.splitext(os.path.basename(b))[0]
+            out.append((f"{sa}+{sb}", a, b))
+    return out
+
+
+def construct_pairs(paths: Sequence[str], distance: float = 150.0) -> list:
+    """Constructed pairs from single-person BVH clips (see module docstring): list of PairedMotion."""
+    out = []
+    for name, pa, pb in _group_pairs(paths):
+        ma, mb = read_bvh(pa), read_bvh(pb)
+        if not ma.skeleton.same_topology(mb.skeleton) or abs(ma.frame_time - mb.frame_time) > 1e-6:
+            continue
+        n = min(ma.num_frames, mb.num_frames)
+        fa = _forward_axis(ma.skeleton)
+        a, b = motion_features(ma)[:n], motion_features(mb)[:n]
+        b = place_facing(a, b, fa, distance)
+        out.append(PairedMotion(np.stack([a, b]).astype(np.float32), ma.skeleton, fa, float(ma.fps), name, True))
+    return out
+
+
+def load_pairs(source: Optional[str] = None, distance: float = 150.0) -> list:
+    """All pairs of a source: a folder with real pairs (``find_pair_files``), else constructed pairs of its
+    clips; ``None`` / ``"embedded"`` -> ``$LAFAN1_DIR`` or the shipped CMU clips (constructed)."""
+    from inbetween_jax.data.datasets import EMBEDDED_DIR, resolve_source
+    source = resolve_source(source)
+    folder = EMBEDDED_DIR if source == "embedded" else source
+    if not os.path.isdir(folder):
+        raise FileNotFoundError(f"data folder {folder!r} does not exist")
+    real = find_pair_files(folder)
+    if real:
+        return [load_pair(a, b, name) for name, a, b in real]
+    if source == "embedded":   # the shipped clips are short: pair within its file-level train / test split
+        from inbetween_jax.data.datasets import split_files
+        pairs = []
+        for split in ("train", "test"):
+            pairs += [dataclasses.replace(p, split=split)
+                      for p in construct_pairs(split_files("embedded", split), distance)]
+        return pairs
+    paths = [os.path.join(folder, f) for f in os.listdir(folder) if f.lower().endswith(".bvh")]
+    pairs = construct_pairs(paths, distance)
+    if not pairs:
+        raise FileNotFoundError(f"no pairable BVH clips in {folder!r}")
+    return pairs
+
+
+def split_pairs(pairs: Sequence[PairedMotion], split: str, fractions=(0.85, 0.05, 0.10)) -> list:
+    """Temporal split of every pair (the paper's 90/5/5 style split, here 85/5/10 by default so that
+    long-horizon test windows fit): ``split`` in train / val / test.  Pairs with a fixed ``split`` are kept
+    whole in theirs (``val`` is then the test pairs)."""
+    idx = {"train": 0, "val": 1, "test": 2}[split]
+    edges = np.cumsum((0.0,) + tuple(fractions))
+    out = []
+    for p in pairs:
+        if p.split is not None:
+            if p.split == split or (split == "val" and p.split == "test"):
+                out.append(p)
+            continue
+        a, b = int(round(edges[idx] * p.num_frames)), int(round(edges[idx + 1] * p.num_frames))
+        if b - a > 1:
+            out.append(p.slice(a, b))
+    return out
+
+
+# ----------------------------------------------------------------------------- samples
+def mirror_feats(feat: np.ndarray, mirror_map: Sequence[int]) -> np.ndarray:
+    """Mirror across the YZ plane (x -> -x) and swap left/right joints: (..., J, 9) -> (..., J, 9)."""
+    sign = np.tile(np.array([-1.0, 1.0, 1.0], feat.dtype), 3)
+    return (feat * sign)[..., list(mirror_map), :]
+
+
+def keyframe_sample(feats: np.ndarray, start: int, length: int, key: int, forward_axis) -> dict:
+    """One sample: ``length`` frames from ``start`` and a keyframe at ``start + key``, each character in its
+    own keyframe space.  feats (2, T, J, 9) world.
+
+    Returns dict: ``x`` (2, length, J, 9), ``keypose`` (2, J, 9), ``rel_R`` (2, 3, 3), ``rel_t`` (2, 3)
+    (map from character c's key space to the other's), ``world_R`` / ``world_t`` (2, 3, 3) / (2, 3)
+    (key space -> world).
+    """
+    R, t = root_space(feats[:, start + key, 0], forward_axis)            # (2, 3, 3), (2, 3)
+    x = to_space(feats[:, start:start + length], R[:, None], t[:, None])
+    kp = to_space(feats[:, start + key], R, t)
+    rel_R, rel_t = relative_space(R, t, R[::-1], t[::-1])
+    return dict(x=x, keypose=kp, rel_R=rel_R, rel_t=rel_t, world_R=R, world_t=t)
+
+
+def sample_batch(pairs: Sequence[PairedMotion], rng: np.random.Generator, batch: int, length: int = 50,
+                 key_range=(50, 70), mirror: bool = True, pos_scale: float = 0.01) -> dict:
+    """A random training batch (numpy float32): keys of :func:`keyframe_sample` with a leading batch axis;
+    positions multiplied by ``pos_scale``.  Mirroring (p = 0.5) is applied to both characters together."""
+    need = max(length, key_range[1] + 1)
+    lens = np.array([max(p.num_frames - need, 0) for p in pairs], np.float64)
+    if lens.sum() <= 0:
+        raise ValueError(f"no pair has the {need} frames a sample needs")
+    mm = pairs[0].skeleton.mirror_map()
+    idx = rng.choice(len(pairs), size=batch, p=lens / lens.sum())
+    starts = (rng.random(batch) * lens[idx]).astype(int)
+    keys = rng.integers(key_range[0], key_range[1] + 1, size=batch)
+    f = np.stack([pairs[i].feats[:, s:s + need] for i, s in zip(idx, starts)]).astype(np.float64)
+    if mirror:
+        flip = rng.random(batch) < 0.5
+        f[flip] = mirror_feats(f[flip], mm)
+    kf = f[np.arange(batch), :, keys]                                       # (B, 2, J, 9)
+    R, t = root_space(kf[:, :, 0], pairs[0].forward_axis)
+    b = dict(x=to_space(f[:, :, :length], R[:, :, None], t[:, :, None]), keypose=to_space(kf, R, t))
+    b["rel_R"], b["rel_t"] = relative_space(R, t, R[:, ::-1], t[:, ::-1])
+    b["world_R"], b["world_t"] = R, t
+    b = {k: v.astype(np.float32) for k, v in b.items()}
+    return scale_positions(b, pos_scale)
+
+
+def scale_positions(b: dict, s: float) -> dict:
+    """Multiply the position channels (and translations) of a sample dict by ``s``."""
+    b = dict(b)
+    sc = np.array([s] * 3 + [1.0] * 6, np.float32)
+    for k in ("x", "keypose"):
+        b[k] = b[k] * sc
+    for k in ("rel_t", "world_t"):
+        b[k] = b[k] * np.float32(s)
+    return b
+
+
+def eval_windows(pairs: Sequence[PairedMotion], n_input: int, transition: int, stride: int,
+                 pos_scale: float = 0.01, max_windows: Optional[int] = None) -> dict:
+    """Deterministic test samples: ``n_input`` frames, ``transition`` frames to fill, the keyframe right after.
+
+    Returns the :func:`keyframe_sample` keys with ``x`` (N, 2, n_input + transition + 1, J, 9) (last frame
+    = keyframe) plus ``names``.  Empty dict if nothing fits.
+    """
+    length = n_input + transition + 1
+    out, names = [], []
+    for p in pairs:
+        for s in range(0, p.num_frames - length + 1, stride):
+            out.append(keyframe_sample(p.feats, s, length, length - 1, p.forward_axis))
+            names.append(f"{p.name}@{s}")
+    if max_windows is not None and len(out) > max_windows:
+        sel = np.linspace(0, len(out) - 1, max_windows).round().astype(int)
+        out, names = [out[i] for i in sel], [names[i] for i in sel]
+    if not out:
+        return {}
+    b = {k: np.stack([o[k] for o in out]).astype(np.float32) for k in out[0]}
+    b = scale_positions(b, pos_scale)
+    b["names"] = names
+    return b

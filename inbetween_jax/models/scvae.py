@@ -1,0 +1,303 @@
+"""S-CVAE: bi-directional stitching CVAE for motion in-betweening (networks and generator rollout).
+
+A *frame* is a dict of arrays for a batch B on a skeleton of J joints::
+
+    q (B, J, 4) local quaternions (w, x, y, z)    r (B, 3) global root position
+    v (B, 3)   root velocity in the generator's own time direction (r_t - r_{t-1})
+    c (B, 4)   foot contacts in [0, 1]             phase (B, 4) local-phase vector (2 feet x (sin, cos))
+
+``stats`` (dict of arrays, see :func:`inbetween_jax.models.scvae_train.compute_stats`) holds the feature
+scales and the skeleton's bone offsets.  Generators are pure functions of a param pytree; the whole
+bi-directional rollout is one ``lax.scan`` (:func:`rollout`), and :func:`sample` draws N transitions for
+one batch of keyframe pairs with ``vmap`` over PRNG keys.
+"""
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from inbetween_jax.geometry import quat_normalize
+from inbetween_jax.models import scvae_nn as nn
+from inbetween_jax.models.scvae_phase import init_phase_net, phase_step
+
+PHASE_DIM = 4
+
+
+def dims(num_joints: int) -> dict:
+    """Feature sizes: state 4J+3+4 (95 on LaFAN1), offset 3+4J (91), target 4J (88), decoder output 4J+3+4."""
+    return {"state": 4 * num_joints + 7, "offset": 4 * num_joints + 3, "target": 4 * num_joints,
+            "out": 4 * num_joints + 7}
+
+
+def init_generator(f: nn.ParamFactory, cfg, num_joints: int) -> dict:
+    """Parameters of one S-CVAE generator (encoder, decoder, phase network) declared on ``f``. cfg: ModelConfig."""
+    d = dims(num_joints)
+    e, o = cfg.enc_hidden, cfg.enc_out
+    enc = {"state": nn.init_mlp(f, (d["state"], e, e, o)),
+           "offset": nn.init_mlp(f, (d["offset"], e, e, o)),
+           "target": nn.init_mlp(f, (d["target"], e, e, o)),
+           "head_cur": nn.init_mlp(f, (cfg.lstm_hidden, cfg.head_hidden, 2 * cfg.latent_dim)),
+           "head_tgt": nn.init_mlp(f, (cfg.lstm_hidden, cfg.head_hidden, 2 * cfg.latent_dim))}
+    if cfg.encoder_lstm:
+        enc["lstm"] = nn.init_lstm(f, 3 * o, cfg.lstm_hidden)
+    else:
+        enc["mlp"] = nn.init_mlp(f, (3 * o, cfg.lstm_hidden))
+    dec_in = cfg.latent_dim + 2 * o
+    n_exp = cfg.num_experts if cfg.phase_moe else 1
+    dec = {"lstm": nn.init_lstm(f, dec_in, cfg.dec_lstm_hidden),
+           "experts": nn.init_moe(f, (cfg.dec_lstm_hidden,) + tuple(cfg.expert_hidden) + (d["out"],), n_exp)}
+    if cfg.phase_moe:
+        dec["gating"] = nn.init_mlp(f, (PHASE_DIM,) + tuple(cfg.gating_hidden) + (cfg.num_experts,))
+    return {"enc": enc, "dec": dec, "phase": init_phase_net(f, d["state"] + PHASE_DIM, cfg.phase_hidden)}
+
+
+def init_carry(cfg, batch: int):
+    """Recurrent state of one generator: encoder and decoder LSTM carries."""
+    return {"enc": nn.lstm_zero_carry((batch,), cfg.lstm_hidden),
+            "dec": nn.lstm_zero_carry((batch,), cfg.dec_lstm_hidden)}
+
+
+# ----------------------------------------------------------------------------- features
+def state_features(f: dict, stats: dict):
+    """(B, 4J+7): local quats, normalised root velocity, contacts."""
+    b = f["q"].shape[0]
+    return jnp.concatenate([f["q"].reshape(b, -1), f["v"] / stats["v_std"], f["c"]], axis=-1)
+
+
+def align_sign(q, ref):
+    """Flip quaternions q (..., 4) into the hemisphere of ref (..., 4)."""
+    return jnp.where(jnp.sum(q * ref, -1, keepdims=True) < 0, -q, q)
+
+
+def offset_features(cur: dict, tgt_q, tgt_r, stats: dict):
+    """(B, 3+4J): root-position offset (scaled) and element-wise local-quaternion offset to the target."""
+    b = cur["q"].shape[0]
+    return jnp.concatenate([(tgt_r - cur["r"]) / stats["off_std"], (tgt_q - cur["q"]).reshape(b, -1)], axis=-1)
+
+
+def reverse_time(f: dict) -> dict:
+    """A frame as seen by the generator running the other way in time (velocity negated)."""
+    return dict(f, v=-f["v"])
+
+
+# ----------------------------------------------------------------------------- one generator step
+def encode(p: dict, cfg, carry, cur: dict, tgt: dict, tta, gamma, key, stats: dict):
+    """S-CVAE encoder (Fig. 3) for one step.
+
+    Stage 1 embeds (current, offset, target) -> LSTM -> N(mu, sigma); stage 2 replaces the current frame
+    by the target (offset 0, tta 0) -> the same LSTM from the same carry -> N(mu_t, sigma_t).  Latent
+    interpolation (Eq. 1) blends the two distributions' parameters with ``gamma`` (B,) and z is sampled.
+    Returns (new_enc_carry, z (B, Z), kl (B,), state_emb (B, O), target_emb (B, O)).
+    """
+    tgt_q = align_sign(tgt["q"], cur["q"])
+    b = cur["q"].shape[0]
+    emb = nn.tta_embedding(jnp.minimum(tta, cfg.tta_max), cfg.enc_out, cfg.tta_basis)
+    emb0 = nn.tta_embedding(jnp.zeros_like(tta), cfg.enc_out, cfg.tta_basis)
+    t_raw = nn.mlp(p["target"], tgt_q.reshape(b, -1))
+    s1 = nn.mlp(p["state"], state_features(cur, stats)) + emb
+    o1 = nn.mlp(p["offset"], offset_features(cur, tgt_q, tgt["r"], stats)) + emb
+    t1 = t_raw + emb
+    tgt_state = dict(tgt, q=tgt_q)
+    s2 = nn.mlp(p["state"], state_features(tgt_state, stats)) + emb0
+    o2 = nn.mlp(p["offset"], offset_features(tgt_state, tgt_q, tgt["r"], stats)) + emb0
+    t2 = t_raw + emb0
+    x1 = jnp.concatenate([s1, o1, t1], -1)
+    x2 = jnp.concatenate([s2, o2, t2], -1)
+    if cfg.encoder_lstm:
+        new_carry, h1 = nn.lstm(p["lstm"], carry, x1)
+        _, h2 = nn.lstm(p["lstm"], carry, x2)
+    else:
+        new_carry = carry
+        h1, h2 = jax.nn.elu(nn.mlp(p["mlp"], x1)), jax.nn.elu(nn.mlp(p["mlp"], x2))
+    mu_c, lv_c = jnp.split(nn.mlp(p["head_cur"], h1), 2, -1)
+    mu_t, lv_t = jnp.split(nn.mlp(p["head_tgt"], h2), 2, -1)
+    lv_c, lv_t = jnp.clip(lv_c, -10.0, 5.0), jnp.clip(lv_t, -10.0, 5.0)
+    g = gamma[:, None]
+    mu = (1.0 - g) * mu_c + g * mu_t
+    sigma = (1.0 - g) * jnp.exp(0.5 * lv_c) + g * jnp.exp(0.5 * lv_t)
+    z = mu + sigma * jax.random.normal(key, mu.shape, mu.dtype)
+    kl = 0.5 * jnp.sum(mu ** 2 + sigma ** 2 - 1.0 - 2.0 * jnp.log(sigma + 1e-8), axis=-1)
+    return new_carry, z, kl, s1, t1
+
+
+def decode(p: dict, cfg, carry, z, s_emb, t_emb, cur: dict, stats: dict):
+    """S-CVAE decoder (Fig. 5): LSTM over [z, state emb, target emb] (16 + 256 + 256 = 528 wide), then
+    the phase-gated mixture of experts.  Predicts root velocity, local-quaternion updates and contacts.
+    Returns (new_dec_carry, next_frame without phase)."""
+    b, j = cur["q"].shape[:2]
+    new_carry, h = nn.lstm(p["lstm"], carry, jnp.concatenate([z, s_emb, t_emb], -1))
+    if cfg.phase_moe:
+        alpha = jax.nn.softmax(nn.mlp(p["gating"], jax.lax.stop_gradient(cur["phase"])), -1)
+    else:
+        alpha = jnp.ones((b, 1), h.dtype)
+    out = nn.moe(p["experts"], h, alpha)
+    dq = out[:, :4 * j].reshape(b, j, 4)
+    v = out[:, 4 * j:4 * j + 3] * stats["v_std"]
+    c = jax.nn.sigmoid(out[:, 4 * j + 3:])
+    q = quat_normalize(cur["q"] + dq)
+    return new_carry, {"q": q, "r": cur["r"] + v, "v": v, "c": c}
+
+
+def generator_step(p: dict, cfg, carry, cur: dict, tgt: dict, tta, gamma, key, stats: dict):
+    """f_{i+1} = G(f_i | f_target).  Returns (new_carry, next_frame (with phase), kl (B,))."""
+    enc_carry, z, kl, s_emb, t_emb = encode(p["enc"], cfg, carry["enc"], cur, tgt, tta, gamma, key, stats)
+    dec_carry, nxt = decode(p["dec"], cfg, carry["dec"], z, s_emb, t_emb, cur, stats)
+    nxt["phase"] = phase_step(jax.lax.stop_gradient(p["phase"]), cur, stats, state_features)
+    return {"enc": enc_carry, "dec": dec_carry}, nxt, kl
+
+
+def gamma_schedule(n, h, k):
+    """Eq. 2: gamma = n / floor(L/2) for n < floor(L/2), n / (floor(L/2) + K) for floor(L/2) <= n <= floor(L/2)+K.
+
+    n: step index (current frame), h = floor(L/2), k = K (ints or int arrays)."""
+    n = jnp.asarray(n, jnp.float32)
+    return jnp.where(n < h, n / jnp.maximum(h, 1), n / (h + k))
+
+
+def split_sizes(length, buffer_k: int):
+    """h = floor(L/2) and the effective buffer K = clip(buffer_k, 1, h - 1) for L frames between keyframes."""
+    h = length // 2
+    return h, jnp.clip(buffer_k, 1, jnp.maximum(h - 1, 1))
+
+
+def num_scan_steps(cfg, max_length: int) -> int:
+    """Static scan length for transitions of up to ``max_length`` frames between keyframes."""
+    return max_length // 2 + cfg.buffer_k if cfg.bidirectional else max_length - 1
+
+
+# ----------------------------------------------------------------------------- bi-directional rollout
+def _select(pred, a: dict, b: dict) -> dict:
+    """Per-field where(pred, a, b) for scalar pred."""
+    return {k: jnp.where(pred, a[k], b[k]) for k in a}
+
+
+def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, key, max_length: int):
+    """Generate the transition between two keyframes ``length`` frames apart (L in the paper).
+
+    start / target: frames at times 0 and L (``v`` ignored: one keyframe carries no velocity; ``phase``
+    ignored: each generator's phase network estimates it from the keyframe).  length: int scalar (traced,
+    4 <= L <= max_length).  max_length: static bound fixing every array shape.
+    Forward and backward generators (``params["fwd"]``, ``params["bwd"]``) alternate inside one
+    ``lax.scan`` (Eq. 3, bi-directional aligning), each producing floor(L/2)+K frames; :func:`stitch`
+    blends them.  Returns a dict with
+      ``fwd`` / ``bwd``: frames (B, S, ...) in generation order (fwd step m = frame m+1, bwd step m =
+      frame L-1-m), ``kl_fwd`` / ``kl_bwd`` (B, S), ``valid`` (S,) bool, ``out``: stitched frames
+      (B, max_length+1, ...) for times 0..max_length (times > L repeat the target), ``h``, ``k``.
+    """
+    steps = num_scan_steps(cfg, max_length)
+    b = start["q"].shape[0]
+    h, k = split_sizes(length, cfg.buffer_k)
+    zero_v = jnp.zeros_like(start["r"])
+    s0 = dict(start, v=zero_v)
+    t0 = dict(target, v=zero_v)
+    s0["phase"] = phase_step(jax.lax.stop_gradient(params["fwd"]["phase"]), dict(s0, phase=jnp.zeros((b, PHASE_DIM))),
+                             stats, state_features)
+    carry_f = init_carry(cfg, b)
+    if cfg.bidirectional:
+        t0["phase"] = phase_step(jax.lax.stop_gradient(params["bwd"]["phase"]),
+                                 dict(t0, phase=jnp.zeros((b, PHASE_DIM))), stats, state_features)
+        carry_b = init_carry(cfg, b)
+    else:
+        t0["phase"] = jnp.zeros((b, PHASE_DIM))
+        carry_b = None
+    keys = jax.random.split(key, steps)
+    ones = jnp.ones((b,), jnp.float32)
+
+    def body(carry, xs):
+        n, step_key = xs
+        kf, kb = jax.random.split(step_key)
+        (cf, cur_f), (cb, cur_b) = carry
+        if cfg.bidirectional:
+            aligned = (n < h) if cfg.aligning else jnp.array(False)
+            tgt_f = _select(aligned, reverse_time(cur_b), t0)
+            tta_f = jnp.where(aligned, length - 2 * n, length - n)
+            gam_f = gamma_schedule(n, h, k) if cfg.latent_interp else 0.0
+        else:
+            tgt_f, tta_f = t0, length - n
+            gam_f = n / jnp.maximum(length - 1, 1) if cfg.latent_interp else 0.0
+        cf, nxt_f, kl_f = generator_step(params["fwd"], cfg, cf, cur_f, tgt_f, tta_f * ones, gam_f * ones, kf, stats)
+        out = {"fwd": nxt_f, "kl_fwd": kl_f}
+        if cfg.bidirectional:
+            tgt_b = _select(aligned, reverse_time(nxt_f), reverse_time(s0))
+            tta_b = jnp.where(aligned, length - 2 * n - 1, length - n)
+            cb, nxt_b, kl_b = generator_step(params["bwd"], cfg, cb, cur_b, tgt_b, tta_b * ones, gam_f * ones, kb,
+                                             stats)
+            out.update(bwd=nxt_b, kl_bwd=kl_b)
+            cur_b = nxt_b
+        return ((cf, nxt_f), (cb, cur_b)), out
+
+    init = ((carry_f, s0), (carry_b, reverse_time(t0)))
+    _, ys = jax.lax.scan(body, init, (jnp.arange(steps), keys))
+    ys = jax.tree.map(lambda x: jnp.swapaxes(x, 0, 1), ys)  # (B, S, ...)
+    m = jnp.arange(steps)
+    res = dict(ys, h=h, k=k)
+    if cfg.bidirectional:
+        res["valid"] = (m < h + k) & (m + 1 <= length - 1)
+        res["out"] = stitch(start, target, ys["fwd"], reverse_frames(ys["bwd"]), length, h, k, max_length)
+    else:
+        res["valid"] = m < length - 1
+        res["out"] = forward_only(start, target, ys["fwd"], length, max_length)
+    return res
+
+
+def reverse_frames(fr: dict) -> dict:
+    return dict(fr, v=-fr["v"])
+
+
+def _gather_time(x, idx):
+    """x (B, S, ...), idx (T,) -> (B, T, ...)."""
+    return jnp.take(x, idx, axis=1)
+
+
+def stitch(start: dict, target: dict, fwd: dict, bwd: dict, length, h, k, max_length: int) -> dict:
+    """Blend forward and backward sequences over the 2K-frame buffer around the middle.
+
+    Time t in 0..max_length: t = 0 is ``start``; 1 <= t <= h-K forward frames; h-K < t <= h+K a linear
+    blend with backward weight (t - (h - K)) / (2K + 1); h+K < t < L backward frames; t >= L is exactly
+    ``target``.  fwd / bwd: (B, S, ...) in generation order.  Returns q (B, T, J, 4), r (B, T, 3), c (B, T, 4).
+    """
+    steps = fwd["q"].shape[1]
+    t = jnp.arange(max_length + 1)
+    fi = jnp.clip(t - 1, 0, steps - 1)
+    bi = jnp.clip(length - 1 - t, 0, steps - 1)
+    w = jnp.clip((t - (h - k)).astype(jnp.float32) / (2 * k + 1).astype(jnp.float32), 0.0, 1.0)
+    fq, bq = _gather_time(fwd["q"], fi), _gather_time(bwd["q"], bi)
+    bq = align_sign(bq, fq)
+    wq = w[None, :, None, None]
+    q = quat_normalize((1 - wq) * fq + wq * bq)
+    wr = w[None, :, None]
+    r = (1 - wr) * _gather_time(fwd["r"], fi) + wr * _gather_time(bwd["r"], bi)
+    c = (1 - wr) * _gather_time(fwd["c"], fi) + wr * _gather_time(bwd["c"], bi)
+    return _with_keyframes(start, target, {"q": q, "r": r, "c": c}, t, length)
+
+
+def forward_only(start: dict, target: dict, fwd: dict, length, max_length: int) -> dict:
+    """"w/o BS": frames 1..L-1 are the forward generator's; the target keyframe is appended as given."""
+    steps = fwd["q"].shape[1]
+    t = jnp.arange(max_length + 1)
+    fi = jnp.clip(t - 1, 0, steps - 1)
+    seq = {n: _gather_time(fwd[n], fi) for n in ("q", "r", "c")}
+    return _with_keyframes(start, target, seq, t, length)
+
+
+def _with_keyframes(start, target, seq, t, length):
+    out = {}
+    for n in ("q", "r", "c"):
+        x = seq[n]
+        shape = (1, -1) + (1,) * (x.ndim - 2)
+        x = jnp.where((t == 0).reshape(shape), start[n][:, None], x)
+        out[n] = jnp.where((t >= length).reshape(shape), target[n][:, None], x)
+    return out
+
+
+def sample(params: dict, cfg, stats: dict, start: dict, target: dict, length, keys, max_length: int) -> dict:
+    """N diverse transitions: ``vmap`` of :func:`rollout` over keys (N,). Returns the rollout dict with a
+    leading sample axis (N, B, ...). Jit it with ``cfg`` and ``max_length`` static."""
+    return jax.vmap(lambda kk: rollout(params, cfg, stats, start, target, length, kk, max_length))(keys)
+
+
+def init_params(key, cfg, num_joints: int) -> dict:
+    """{"fwd": generator, "bwd": generator} with independent parameters."""
+    f = nn.ParamFactory()
+    tree = {"fwd": init_generator(f, cfg, num_joints), "bwd": init_generator(f, cfg, num_joints)}
+    return f.materialize(tree, key)

@@ -1,0 +1,121 @@
+"""Pure-function building blocks of the S-CVAE: dense / MLP / LSTM / mixture-of-experts on plain param pytrees.
+
+Parameters are nested dicts of float32 arrays, declared by ``init_*`` on a :class:`ParamFactory` and
+drawn from one explicit PRNG key by ``ParamFactory.materialize``.  The apply functions are pure (nothing
+here holds state), so every model function can be ``jit``-ed, ``vmap``-ed and differentiated directly.
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+
+class _Slot:
+    """Placeholder leaf for a parameter drawn later by :meth:`ParamFactory.materialize`."""
+    __slots__ = ("index",)
+
+    def __init__(self, index: int):
+        self.index = index
+
+
+class ParamFactory:
+    """Collects parameter shapes, then draws *all* of them with one ``jax.random.uniform`` call.
+
+    One draw keeps the jitted / ``eval_shape``-d initialiser tiny (a per-layer draw compiles one
+    threefry kernel per layer).  ``uniform(shape, lim)`` returns a placeholder; ``materialize(tree, key)``
+    replaces the placeholders by U(-lim, lim) arrays (float32).
+    """
+
+    def __init__(self):
+        self.specs = []
+
+    def uniform(self, shape, lim: float) -> _Slot:
+        self.specs.append((tuple(int(d) for d in shape), float(lim)))
+        return _Slot(len(self.specs) - 1)
+
+    def materialize(self, tree, key):
+        sizes = [int(np.prod(s)) for s, _ in self.specs]
+        flat = jax.random.uniform(key, (sum(sizes),), jnp.float32, -1.0, 1.0)
+        offs = np.concatenate([[0], np.cumsum(sizes)])
+        arrays = [flat[o:o + n].reshape(s) * lim for o, n, (s, lim) in zip(offs[:-1], sizes, self.specs)]
+        return jax.tree.map(lambda x: arrays[x.index] if isinstance(x, _Slot) else x, tree)
+
+
+def init_dense(f: ParamFactory, d_in: int, d_out: int) -> dict:
+    """PyTorch-style uniform init: W (d_in, d_out), b (d_out,) ~ U(-1/sqrt(d_in), 1/sqrt(d_in))."""
+    lim = 1.0 / np.sqrt(d_in)
+    return {"w": f.uniform((d_in, d_out), lim), "b": f.uniform((d_out,), lim)}
+
+
+def init_mlp(f: ParamFactory, sizes: Sequence[int]) -> list:
+    """Fully-connected layers ``sizes[0] -> sizes[1] -> ... -> sizes[-1]``."""
+    return [init_dense(f, a, b) for a, b in zip(sizes[:-1], sizes[1:])]
+
+
+def mlp(params: list, x, final_act: bool = False):
+    """x (..., sizes[0]) -> (..., sizes[-1]); ELU between layers (and after the last if ``final_act``)."""
+    for i, layer in enumerate(params):
+        x = x @ layer["w"] + layer["b"]
+        if i < len(params) - 1 or final_act:
+            x = jax.nn.elu(x)
+    return x
+
+
+def init_lstm(f: ParamFactory, d_in: int, d_hidden: int) -> dict:
+    """One LSTM cell: gates (i, f, g, o) from ``x @ wx + h @ wh + b``; forget bias initialised to 1."""
+    lim = 1.0 / np.sqrt(d_hidden)
+    b = np.zeros((4 * d_hidden,), np.float32)
+    b[d_hidden:2 * d_hidden] = 1.0
+    return {"wx": f.uniform((d_in, 4 * d_hidden), lim), "wh": f.uniform((d_hidden, 4 * d_hidden), lim),
+            "b": jnp.asarray(b)}
+
+
+def lstm_zero_carry(batch_shape, d_hidden: int):
+    """(h, c), each (*batch_shape, d_hidden) zeros."""
+    z = jnp.zeros(tuple(batch_shape) + (d_hidden,), jnp.float32)
+    return (z, z)
+
+
+def lstm(params: dict, carry, x):
+    """One step. carry (h, c) each (B, H); x (B, D). Returns (new_carry, h_new (B, H))."""
+    h, c = carry
+    gates = x @ params["wx"] + h @ params["wh"] + params["b"]
+    i, f, g, o = jnp.split(gates, 4, axis=-1)
+    c = jax.nn.sigmoid(f) * c + jax.nn.sigmoid(i) * jnp.tanh(g)
+    h = jax.nn.sigmoid(o) * jnp.tanh(c)
+    return (h, c), h
+
+
+def init_moe(f: ParamFactory, sizes: Sequence[int], num_experts: int) -> list:
+    """Experts as stacked layers: W (E, d_in, d_out), b (E, d_out)."""
+    return [{"w": f.uniform((num_experts, a, b), 1.0 / np.sqrt(a)), "b": f.uniform((num_experts, b), 1.0 / np.sqrt(a))}
+            for a, b in zip(sizes[:-1], sizes[1:])]
+
+
+def moe(params: list, x, alpha):
+    """Mixture of experts with blended *weights* (MANN-style): every layer uses ``sum_e alpha_e W_e``.
+
+    Blending the weights of a linear layer equals blending its per-expert outputs before the
+    activation, which is what is computed (no per-sample weight matrices are materialised).
+    x (B, d_in), alpha (B, E) (rows sum to 1) -> (B, d_out).
+    """
+    for i, layer in enumerate(params):
+        y = jnp.einsum("bi,eio->beo", x, layer["w"]) + layer["b"][None]
+        x = jnp.einsum("be,beo->bo", alpha, y)
+        if i < len(params) - 1:
+            x = jax.nn.elu(x)
+    return x
+
+
+def tta_embedding(tta, dim: int, basis: float = 10000.0):
+    """Time-to-arrival embedding (Eq. 11-12): z_{2i} = sin(tta / basis^(2i/d)), z_{2i+1} = cos(...).
+
+    tta: (...) float -> (..., dim).
+    """
+    i = jnp.arange(dim // 2, dtype=jnp.float32)
+    freq = basis ** (2.0 * i / dim)
+    ang = jnp.asarray(tta, jnp.float32)[..., None] / freq
+    return jnp.stack([jnp.sin(ang), jnp.cos(ang)], axis=-1).reshape(ang.shape[:-1] + (dim,))
