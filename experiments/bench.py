@@ -67,11 +67,7 @@ def main(argv=None):
     results = {"source": source, "windows": len(bench), "official": official, "table1": table1, "models": {}}
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     for model in [m for m in args.models.split(",") if m]:
-        # scvae / interaction: runs/<model>; cae: the folder of runs (runs/cae-<variant>, baselines included)
-        ckpt = os.path.join(args.ckpt_root, model)
-        if model == "cae" and not os.path.isdir(ckpt) and os.path.isdir(args.ckpt_root) and any(
-                d.startswith("cae-") for d in os.listdir(args.ckpt_root)):
-            ckpt = args.ckpt_root
+        ckpt = os.path.join(args.ckpt_root, model)  # runs/cae holds one run folder per CAE variant
         if not os.path.exists(os.path.join(os.path.dirname(__file__), f"bench_{model}.py")):
             continue
         if not os.path.isdir(ckpt):

@@ -4,11 +4,12 @@
 
 Overrides are fields of ``inbetween_jax/configs/cae.py`` (``model.variant=vanilla``, ``batch_size=16``,
 ``mask.curriculum=false`` ...).  Re-running with the same ``--run-dir`` resumes from its latest checkpoint.
-Default run folder: ``runs/cae-<variant>``.
+Default run folder: ``runs/cae/<variant>`` (``make bench`` evaluates every variant found in ``runs/cae``).
 """
 from __future__ import annotations
 
 import json
+import os
 import sys
 
 
@@ -34,7 +35,7 @@ def main(argv: list[str]) -> int:
         else:
             overrides.append(a)
     cfg = apply_overrides(get_config(preset), overrides)   # fail early on a bad override
-    run_dir = run_dir or f"runs/cae-{cfg.model.variant}"
+    run_dir = run_dir or os.path.join("runs", "cae", cfg.model.variant)
     _, logged, info = train(run_dir, source, preset, overrides)
     last = logged[-1] if logged else {}
     print(json.dumps({"run_dir": run_dir, **info, "last": last}))

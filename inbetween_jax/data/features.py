@@ -5,6 +5,8 @@ import dataclasses
 
 import numpy as np
 
+from inbetween_jax.geometry.quaternion import _xp
+
 
 def foot_contacts(foot_pos: np.ndarray, velfactor: float = 0.02) -> np.ndarray:
     """LaFAN1 contact labels: a foot joint is in contact when its squared displacement to the next
@@ -20,25 +22,23 @@ def foot_contacts(foot_pos: np.ndarray, velfactor: float = 0.02) -> np.ndarray:
 
 
 def root_velocity(root_pos):
-    """Per-frame root displacement ``r_t - r_{t-1}`` (first frame zero): (..., T, 3) -> (..., T, 3)."""
-    vel = root_pos[..., 1:, :] - root_pos[..., :-1, :]
-    return np.concatenate([np.zeros_like(root_pos[..., :1, :]), vel], axis=-2) if isinstance(
-        root_pos, np.ndarray) else _jnp_root_velocity(root_pos)
+    """Per-frame root displacement ``r_t - r_{t-1}`` (first frame zero): (..., T, 3) -> (..., T, 3).
 
-
-def _jnp_root_velocity(root_pos):
-    import jax.numpy as jnp
+    Computes in NumPy for NumPy input and in ``jax.numpy`` otherwise.
+    """
+    xp = _xp(root_pos)
     vel = root_pos[..., 1:, :] - root_pos[..., :-1, :]
-    return jnp.concatenate([jnp.zeros_like(root_pos[..., :1, :]), vel], axis=-2)
+    return xp.concatenate([xp.zeros_like(root_pos[..., :1, :]), vel], axis=-2)
 
 
 def offsets_to_target(root_pos, local_quats, target_root, target_quats):
-    """S-CVAE / RMIB offset features: element-wise differences to the target keyframe.
+    """S-CVAE / RMIB offset features: element-wise differences ``target - current``.
 
-    root_pos: (..., T, 3); local_quats: (..., T, J, 4); target_root: (..., 3); target_quats: (..., J, 4).
-    Returns (root offset (..., T, 3), quaternion offsets (..., T, J, 4)) = target - current.
+    root_pos (..., 3) and local_quats (..., J, 4) of the current frame(s); the target's root (..., 3) and
+    quaternions (..., J, 4) broadcast against them (add a time axis to the target for (..., T, ...) inputs).
+    Returns (root offset (..., 3), quaternion offsets (..., J, 4)).
     """
-    return target_root[..., None, :] - root_pos, target_quats[..., None, :, :] - local_quats
+    return target_root - root_pos, target_quats - local_quats
 
 
 @dataclasses.dataclass

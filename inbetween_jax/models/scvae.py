@@ -16,6 +16,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from inbetween_jax.data.features import offsets_to_target
 from inbetween_jax.geometry import quat_normalize
 from inbetween_jax.models import scvae_nn as nn
 from inbetween_jax.models.scvae_phase import init_phase_net, phase_step
@@ -72,7 +73,8 @@ def align_sign(q, ref):
 def offset_features(cur: dict, tgt_q, tgt_r, stats: dict):
     """(B, 3+4J): root-position offset (scaled) and element-wise local-quaternion offset to the target."""
     b = cur["q"].shape[0]
-    return jnp.concatenate([(tgt_r - cur["r"]) / stats["off_std"], (tgt_q - cur["q"]).reshape(b, -1)], axis=-1)
+    off_r, off_q = offsets_to_target(cur["r"], cur["q"], tgt_r, tgt_q)
+    return jnp.concatenate([off_r / stats["off_std"], off_q.reshape(b, -1)], axis=-1)
 
 
 def reverse_time(f: dict) -> dict:
