@@ -6,7 +6,7 @@ MODEL  ?= scvae
 ARGS   ?=
 RESULTS ?= results
 
-.PHONY: help install test test-all bench bench-quick train lint-dupes clean-cache embedded-data
+.PHONY: help install test test-all bench bench-quick train lint-dupes clean-cache embedded-data demo infill preview
 
 help:
 	@echo "make install              create .venv and install the package with test extras"
@@ -14,6 +14,10 @@ help:
 	@echo "make test-all             include tests marked slow"
 	@echo "make train MODEL=scvae    train scvae|cae|interaction on the embedded data or \$$LAFAN1_DIR (ARGS='key=value ...')"
 	@echo "make bench                baseline + model tables on the embedded data or \$$LAFAN1_DIR, into $(RESULTS)/"
+	@echo ".venv/bin/inbetween --help  in-betweening of your own BVH files with a trained run (infill)"
+	@echo "make demo                 few-step tiny runs of the 3 models + infill with previews on shipped BVH -> results/demo/"
+	@echo "make infill ARGS='...'    .venv/bin/inbetween infill ARGS (see .venv/bin/inbetween infill --help)"
+	@echo "make preview ARGS='...'   .venv/bin/inbetween preview ARGS (e.g. ARGS='FILE.bvh --gif --out DIR')"
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -36,6 +40,15 @@ train: install
 
 bench: install
 	$(PY) experiments/bench.py --results $(RESULTS) $(ARGS)
+
+demo: install
+	$(PY) experiments/demo.py
+
+infill: install
+	$(VENV)/bin/inbetween infill $(ARGS)
+
+preview: install
+	$(VENV)/bin/inbetween preview $(ARGS)
 
 embedded-data: install
 	$(PY) experiments/make_embedded_data.py --src ../shared/data/cmu_bvh --out inbetween_jax/assets/cmu30

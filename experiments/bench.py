@@ -4,7 +4,9 @@ Writes ``<results>/bench.md`` and ``<results>/bench.json``:
 1. the official LaFAN1 baseline table (zero-velocity / interpolation; L2Q, L2P, NPSS at 5/15/30/45,
    10 past frames);
 2. the S-CVAE paper's Table 1 layout (APD L2P L2Q ADE SLDE NPSS FootSlide at 10/30/50, one past keyframe);
-3. each model's own tables when ``experiments/bench_<model>.py`` exists and a checkpoint is found in
+3. the speed section (``experiments/bench_speed.py``: JAX against PyTorch eager, inference, compile times;
+   ``--no-speed`` skips it);
+4. each model's own tables when ``experiments/bench_<model>.py`` exists and a checkpoint is found in
    ``runs/<model>`` (or ``--ckpt-root``); models without a checkpoint are listed as skipped.
 
 L2P statistics: computed from the source's training windows, or read from ``--l2p-stats FILE.npz``
@@ -46,6 +48,8 @@ def main(argv=None):
     ap.add_argument("--ckpt-root", default="runs")
     ap.add_argument("--models", default=",".join(MODELS))
     ap.add_argument("--quick", action="store_true", help="passed to the model benches (fewer samples)")
+    ap.add_argument("--no-speed", action="store_true", help="skip the speed section (JAX vs PyTorch eager timings)")
+    ap.add_argument("--speed-reps", type=int, default=5, help="timed calls per speed row (medians)")
     args = ap.parse_args(argv)
     source = resolve_source(args.source)
     t0 = time.time()
@@ -80,6 +84,10 @@ def main(argv=None):
             continue
         results["models"][model] = out
         sections.append(out.get("markdown", "") if isinstance(out, dict) else str(out))
+    if not args.no_speed:   # last, in this process: compiled JAX against PyTorch eager (bench_speed.py)
+        speed = importlib.import_module("bench_speed").run(source, args.results, args.speed_reps, args.quick)
+        results["speed"] = {k: v for k, v in speed.items() if k != "markdown"}
+        sections.append(speed["markdown"])
     sections.append(f"Benchmark wall time: {time.time() - t0:.1f} s.")
     text = "\n\n".join(s for s in sections if s) + "\n"
     os.makedirs(args.results, exist_ok=True)

@@ -29,7 +29,7 @@ GAPS = (0, 60, 120)
 SIGMAS = (1.0, 1.5)
 PS = (0.3, 0.5)
 LABELS = {"linear": "Linear interpolation", "holden1d": "Holden-style 1D conv AE (60)",
-          "vanilla": "Vanilla AE (60)", "cae": "CAE (ours, curriculum)"}
+          "vanilla": "Vanilla AE (60)", "cae": "CAE (ours)"}
 PAPER_T1 = {"linear": ("n/a", "10.45 (± 15.5)", "17.04 (± 24.4)"), "holden1d": ("4.44 (± 6.5)", "15.28 (± 19.1)",
             "18.26 (± 24.5)"), "vanilla": ("2.79 (± 6.7)", "7.45 (± 11.7)", "13.61 (± 21.6)"),
             "cae": ("2.75 (± 5.2)", "5.47 (± 8.6)", "7.00 (± 10.6)")}

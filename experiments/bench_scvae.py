@@ -3,6 +3,9 @@
 ``run(source, results_dir, ckpt_dir, quick)``: keyframes at frame 9 (one past frame) and 9 + L + 1 for
 L = 10, 30, 50; APD over 10 samples; accuracy metrics averaged over the samples.  Without a checkpoint a
 tiny model is trained for a few steps only and its rows are labelled *untrained*.
+Also writes ``<results>/scvae_error_over_time.png``: the per-frame joint position error along the longest
+transition (mean over windows and samples, band = min..max over the samples averaged over windows) with
+Slerp dashed, as Fig. 6 of the S-CVAE paper.
 Also runnable: ``python experiments/bench_scvae.py [--source DIR] [--ckpt runs/scvae] [--results DIR] [--quick]``.
 """
 from __future__ import annotations
@@ -13,6 +16,8 @@ import os
 import sys
 import tempfile
 import time
+
+import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
@@ -53,6 +58,8 @@ def run(source: str | None, results_dir: str, ckpt_dir: str | None, quick: bool)
     rows = [r for r in baseline_table1(bench, x_mean, x_std, LENGTHS, N_PAST) if r["method"] == "Slerp"]
     for length in LENGTHS:
         s = scvae_eval.sample_transitions(cfg.model, state, bench, N_PAST, length, num_samples)
+        if length == max(LENGTHS):
+            longest = s
         row = {"method": label, "frames": length,
                **transition_metrics(bench, N_PAST, length, s["q"], s["r"], x_mean, x_std)}
         row["MMPE"] = (float(metrics.mmpe(s["mid_f"][:, :, None], s["mid_b"][:, :, None], mid_index=0))
@@ -61,14 +68,52 @@ def run(source: str | None, results_dir: str, ckpt_dir: str | None, quick: bool)
     rows.sort(key=lambda r: (r["frames"], r["method"] != "Slerp"))
     cols = tuple(TABLE_COLUMNS) + ("MMPE",)
     md = markdown_table(rows, cols, f"S-CVAE, Table 1 layout ({len(bench)} windows, {num_samples} samples)")
-    md += f"\n\n{note}APD/ADE/SLDE in m, FootSlide in cm/frame, MMPE in cm. Wall {time.time() - t0:.0f} s."
     os.makedirs(results_dir, exist_ok=True)
-    out = {"rows": rows, "markdown": md, "step": step, "source": source, "windows": len(bench)}
+    plot = error_over_time_plot(bench, max(LENGTHS), longest, label,
+                                os.path.join(results_dir, "scvae_error_over_time.png"))
+    md += (f"\n\n{note}APD/ADE/SLDE in m, FootSlide in cm/frame, MMPE in cm. Error along the {max(LENGTHS)}-frame "
+           f"transition: `{os.path.basename(plot)}`. Wall {time.time() - t0:.0f} s.")
+    out = {"rows": rows, "markdown": md, "step": step, "source": source, "windows": len(bench), "plots": [plot]}
     with open(os.path.join(results_dir, "scvae.json"), "w") as f:
         json.dump(out, f, indent=1)
     with open(os.path.join(results_dir, "scvae.md"), "w") as f:
         f.write(md + "\n")
     return out
+
+
+def per_frame_error(windows, n_past: int, n_trans: int, q, r) -> np.ndarray:
+    """Mean joint position error (data units, cm) of every transition frame against the ground truth.
+
+    q: (S, B, n_trans, J, 4) local quaternions, r: (S, B, n_trans, 3) root positions of S samples of the
+    transition after frame ``n_past - 1`` of the B windows.  Returns (S, B, n_trans).
+    """
+    from inbetween_jax.geometry import forward_kinematics, local_positions
+
+    def fk(quats, root):
+        lp = local_positions(np.asarray(root, np.float64), windows.skeleton.offsets)
+        return forward_kinematics(np.asarray(quats, np.float64), lp, windows.parents)[1]
+
+    lo, hi = n_past, n_past + n_trans
+    gt = fk(windows.local_quats[:, lo:hi], windows.root_pos[:, lo:hi])                # (B, L, J, 3)
+    return np.stack([np.linalg.norm(fk(qs, rs) - gt, axis=-1).mean(-1) for qs, rs in zip(q, r)])
+
+
+def error_over_time_plot(windows, n_trans: int, samples: dict, label: str, path: str) -> str:
+    """Plot the per-frame error of ``samples`` (``sample_transitions`` output) with Slerp as the baseline.
+
+    Curve: mean over windows and samples; band: per window min..max over the samples, averaged over windows.
+    """
+    from inbetween_jax.baselines import interpolate_transition
+    from inbetween_jax.viz import plot_error_over_time
+    err = per_frame_error(windows, N_PAST, n_trans, samples["q"], samples["r"])           # (S, B, L)
+    q, r = interpolate_transition(windows.local_quats.astype(np.float64), windows.root_pos.astype(np.float64),
+                                  N_PAST, n_trans)
+    slerp = per_frame_error(windows, N_PAST, n_trans, q[None], r[None])[0].mean(0)
+    title = (f"{n_trans}-frame transitions, {err.shape[1]} windows\n"
+             f"band: min..max over {err.shape[0]} samples, averaged over windows")
+    return plot_error_over_time(np.arange(1, n_trans + 1), err.mean((0, 1)), err.min(0).mean(0),
+                                err.max(0).mean(0), path, label, baseline={"Slerp": slerp},
+                                ylabel="mean joint position error (cm)", title=title)
 
 
 def _untrained(train, steps: int = 3):

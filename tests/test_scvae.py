@@ -124,3 +124,28 @@ def test_each_ablation_switch_changes_the_computation(setup):
                 assert diff > 1e-4, f"switching off {name} changed nothing"
                 # every variant still starts and ends on the keyframes
                 np.testing.assert_array_equal(np.asarray(out["q"])[:, MAXLEN], batch["q"][:, MAXLEN])
+
+
+def test_packed_layers_equal_plain_layers():
+    """The rollout's packed LSTM / shared-carry LSTM / packed MoE compute exactly what the plain layers do."""
+    from inbetween_jax.models import scvae_nn as nn
+    f = nn.ParamFactory()
+    tree = {"lstm": nn.init_lstm(f, 6, 5), "moe": nn.init_moe(f, (5, 7, 3), 4)}
+    p = f.materialize(tree, jax.random.key(0))
+    ks = jax.random.split(jax.random.key(1), 5)
+    x1, x2 = jax.random.normal(ks[0], (3, 6)), jax.random.normal(ks[1], (3, 6))
+    carry = (jax.random.normal(ks[2], (3, 5)), jax.random.normal(ks[3], (3, 5)))
+    (h_ref, c_ref), y1 = nn.lstm(p["lstm"], carry, x1)
+    _, y2 = nn.lstm(p["lstm"], carry, x2)
+    (h_pk, c_pk), y_pk = nn.lstm_packed(nn.pack_lstm(p["lstm"]), carry, x1)
+    np.testing.assert_allclose(y_pk, y1, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(c_pk, c_ref, rtol=1e-5, atol=1e-6)
+    (h_sh, c_sh), z1, z2 = nn.lstm_shared_carry(p["lstm"], carry, x1, x2)
+    np.testing.assert_allclose(z1, y1, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(z2, y2, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(c_sh, c_ref, rtol=1e-5, atol=1e-6)
+    alpha = jax.nn.softmax(jax.random.normal(ks[4], (3, 4)), -1)
+    np.testing.assert_allclose(nn.moe(nn.pack_moe(p["moe"]), y1, alpha), nn.moe(p["moe"], y1, alpha),
+                               rtol=1e-5, atol=1e-6)
+    # and the blend really depends on the gate (not a trivially equal pair of zeros)
+    assert float(jnp.abs(nn.moe(p["moe"], y1, alpha) - nn.moe(p["moe"], y1, alpha[:, ::-1])).max()) > 1e-3

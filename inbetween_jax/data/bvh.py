@@ -162,6 +162,9 @@ def _parse_hierarchy(path, lines):
     for j, o in enumerate(offsets):
         if o is None:
             raise BVHError(path, None, f"joint {names[j]!r} has no OFFSET")
+    dup = next((n for k, n in enumerate(names) if n in names[:k]), None)
+    if dup is not None:
+        raise BVHError(path, None, f"joint name {dup!r} appears more than once")
     skel = Skeleton(tuple(names), tuple(parents), np.stack(offsets), tuple(channels),
                     tuple((p, o if o is not None else np.zeros(3)) for p, o in end_sites))
     return skel, i
@@ -182,7 +185,7 @@ def _parse_motion(path, lines, start_line, skel):
             raise BVHError(path, i + 1, f"bad value in {lines[i].strip()!r}") from None
         i += 1
     frames, frame_time = header["Frames:"], header["Frame Time:"]
-    if frames != int(frames) or frames < 1:
+    if not np.isfinite(frames) or frames != int(frames) or frames < 1:
         raise BVHError(path, start_line + 1, f"Frames must be a positive integer, got {lines[start_line].strip()!r}")
     if not np.isfinite(frame_time) or frame_time <= 0:
         raise BVHError(path, start_line + 2, f"Frame Time must be positive, got {frame_time}")

@@ -52,6 +52,12 @@ def init_generator(f: nn.ParamFactory, cfg, num_joints: int) -> dict:
     return {"enc": enc, "dec": dec, "phase": init_phase_net(f, d["state"] + PHASE_DIM, cfg.phase_hidden)}
 
 
+def pack_generator(p: dict) -> dict:
+    """Generator params with the decoder LSTM packed for one ``[x, h] @ [wx; wh]`` matmul per step and
+    the experts' layers packed side by side (one matmul per layer).  Same values, fewer and larger GEMMs."""
+    return dict(p, dec=dict(p["dec"], lstm=nn.pack_lstm(p["dec"]["lstm"]), experts=nn.pack_moe(p["dec"]["experts"])))
+
+
 def init_carry(cfg, batch: int):
     """Recurrent state of one generator: encoder and decoder LSTM carries."""
     return {"enc": nn.lstm_zero_carry((batch,), cfg.lstm_hidden),
@@ -96,18 +102,20 @@ def encode(p: dict, cfg, carry, cur: dict, tgt: dict, tta, gamma, key, stats: di
     emb = nn.tta_embedding(jnp.minimum(tta, cfg.tta_max), cfg.enc_out, cfg.tta_basis)
     emb0 = nn.tta_embedding(jnp.zeros_like(tta), cfg.enc_out, cfg.tta_basis)
     t_raw = nn.mlp(p["target"], tgt_q.reshape(b, -1))
-    s1 = nn.mlp(p["state"], state_features(cur, stats)) + emb
-    o1 = nn.mlp(p["offset"], offset_features(cur, tgt_q, tgt["r"], stats)) + emb
-    t1 = t_raw + emb
     tgt_state = dict(tgt, q=tgt_q)
-    s2 = nn.mlp(p["state"], state_features(tgt_state, stats)) + emb0
-    o2 = nn.mlp(p["offset"], offset_features(tgt_state, tgt_q, tgt["r"], stats)) + emb0
+    # stage 1 (current frame) and stage 2 (target as current) share the state MLP: one call over 2B rows
+    s12 = nn.mlp(p["state"], jnp.concatenate([state_features(cur, stats), state_features(tgt_state, stats)]))
+    s1, s2 = s12[:b] + emb, s12[b:] + emb0
+    o1 = nn.mlp(p["offset"], offset_features(cur, tgt_q, tgt["r"], stats)) + emb
+    # the target's offset to itself is exactly zero: its embedding is one row, broadcast
+    zero_off = jnp.zeros((1, 3 + tgt_q.shape[1] * 4), s1.dtype)
+    o2 = nn.mlp(p["offset"], zero_off) + emb0
+    t1 = t_raw + emb
     t2 = t_raw + emb0
     x1 = jnp.concatenate([s1, o1, t1], -1)
     x2 = jnp.concatenate([s2, o2, t2], -1)
     if cfg.encoder_lstm:
-        new_carry, h1 = nn.lstm(p["lstm"], carry, x1)
-        _, h2 = nn.lstm(p["lstm"], carry, x2)
+        new_carry, h1, h2 = nn.lstm_shared_carry(p["lstm"], carry, x1, x2)
     else:
         new_carry = carry
         h1, h2 = jax.nn.elu(nn.mlp(p["mlp"], x1)), jax.nn.elu(nn.mlp(p["mlp"], x2))
@@ -127,7 +135,8 @@ def decode(p: dict, cfg, carry, z, s_emb, t_emb, cur: dict, stats: dict):
     the phase-gated mixture of experts.  Predicts root velocity, local-quaternion updates and contacts.
     Returns (new_dec_carry, next_frame without phase)."""
     b, j = cur["q"].shape[:2]
-    new_carry, h = nn.lstm(p["lstm"], carry, jnp.concatenate([z, s_emb, t_emb], -1))
+    lstm_step = nn.lstm_packed if "w" in p["lstm"] else nn.lstm
+    new_carry, h = lstm_step(p["lstm"], carry, jnp.concatenate([z, s_emb, t_emb], -1))
     if cfg.phase_moe:
         alpha = jax.nn.softmax(nn.mlp(p["gating"], jax.lax.stop_gradient(cur["phase"])), -1)
     else:
@@ -188,6 +197,7 @@ def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, k
     """
     steps = num_scan_steps(cfg, max_length)
     b = start["q"].shape[0]
+    params = {name: pack_generator(g) for name, g in params.items()}   # once, outside the scan
     h, k = split_sizes(length, cfg.buffer_k)
     zero_v = jnp.zeros_like(start["r"])
     s0 = dict(start, v=zero_v)

@@ -89,6 +89,37 @@ def lstm(params: dict, carry, x):
     return (h, c), h
 
 
+def lstm_shared_carry(params: dict, carry, x1, x2):
+    """Two LSTM steps from the *same* carry on two inputs, as one matmul over 2B rows.
+
+    ``h @ wh`` is computed once.  carry (h, c) each (B, H); x1, x2 (B, D).
+    Returns (carry after x1, h1 (B, H), h2 (B, H)) -- equal to two :func:`lstm` calls.
+    """
+    h, c = carry
+    b = h.shape[0]
+    gh = h @ params["wh"] + params["b"]
+    gates = jnp.concatenate([x1, x2], axis=0) @ params["wx"] + jnp.concatenate([gh, gh], axis=0)
+    i, f, g, o = jnp.split(gates, 4, axis=-1)
+    c2 = jax.nn.sigmoid(f) * jnp.concatenate([c, c], axis=0) + jax.nn.sigmoid(i) * jnp.tanh(g)
+    h2 = jax.nn.sigmoid(o) * jnp.tanh(c2)
+    return (h2[:b], c2[:b]), h2[:b], h2[b:]
+
+
+def pack_lstm(params: dict) -> dict:
+    """{"wx", "wh", "b"} -> {"w": [wx; wh] (D + H, 4H), "b"} for :func:`lstm_packed` (do it outside a scan)."""
+    return {"w": jnp.concatenate([params["wx"], params["wh"]], axis=0), "b": params["b"]}
+
+
+def lstm_packed(params: dict, carry, x):
+    """:func:`lstm` with packed weights: one ``[x, h] @ [wx; wh]`` matmul.  Same shapes and values."""
+    h, c = carry
+    gates = jnp.concatenate([x, h], axis=-1) @ params["w"] + params["b"]
+    i, f, g, o = jnp.split(gates, 4, axis=-1)
+    c = jax.nn.sigmoid(f) * c + jax.nn.sigmoid(i) * jnp.tanh(g)
+    h = jax.nn.sigmoid(o) * jnp.tanh(c)
+    return (h, c), h
+
+
 def init_moe(f: ParamFactory, sizes: Sequence[int], num_experts: int) -> list:
     """Experts as stacked layers: W (E, d_in, d_out), b (E, d_out)."""
     return [{"w": f.uniform((num_experts, a, b), 1.0 / np.sqrt(a)), "b": f.uniform((num_experts, b), 1.0 / np.sqrt(a))}
@@ -99,15 +130,29 @@ def moe(params: list, x, alpha):
     """Mixture of experts with blended *weights* (MANN-style): every layer uses ``sum_e alpha_e W_e``.
 
     Blending the weights of a linear layer equals blending its per-expert outputs before the
-    activation, which is what is computed (no per-sample weight matrices are materialised).
+    activation, which is what is computed (no per-sample weight matrices are materialised).  Layers may
+    be packed by :func:`pack_moe` (one (d_in, E * d_out) matmul per layer instead of E).
     x (B, d_in), alpha (B, E) (rows sum to 1) -> (B, d_out).
     """
     for i, layer in enumerate(params):
-        y = jnp.einsum("bi,eio->beo", x, layer["w"]) + layer["b"][None]
+        if "w_packed" in layer:
+            e, o = layer["b"].shape
+            y = (x @ layer["w_packed"]).reshape(x.shape[0], e, o) + layer["b"][None]
+        else:
+            y = jnp.einsum("bi,eio->beo", x, layer["w"]) + layer["b"][None]
         x = jnp.einsum("be,beo->bo", alpha, y)
         if i < len(params) - 1:
             x = jax.nn.elu(x)
     return x
+
+
+def pack_moe(params: list) -> list:
+    """Expert layers W (E, d_in, d_out) -> ``w_packed`` (d_in, E * d_out) (do it outside a scan)."""
+    out = []
+    for layer in params:
+        e, i, o = layer["w"].shape
+        out.append({"w_packed": jnp.transpose(layer["w"], (1, 0, 2)).reshape(i, e * o), "b": layer["b"]})
+    return out
 
 
 def tta_embedding(tta, dim: int, basis: float = 10000.0):

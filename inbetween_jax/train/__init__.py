@@ -7,15 +7,20 @@ Public API::
     MetricLogger(run_dir, resume_step=None)  .log(step, metrics) / .close      ProgressBar(total, initial)
     run_training(init_fn, train_step_fn, batch_fn, config, run_dir, num_steps, log_every, ckpt_every, seed)
     enable_compilation_cache(cache_dir=None) -> str
+    data-parallel (``data_parallel`` is the ``train.parallel`` module): make_mesh(num_devices=None) -> Mesh,
+    shard_batch(batch, mesh), replicate(state, mesh), make_parallel_step_fn(step_fn, train_base, mesh);
+    run_training(..., mesh=make_mesh()) trains with the state replicated and every batch split.
 """
 
 from .checkpoint import Checkpointer
 from .config import ConfigError, apply_overrides, config_to_dict, parse_value
 from .logging import MetricLogger, ProgressBar, format_metrics
 from .loop import default_cache_dir, enable_compilation_cache, make_step_fn, run_training
+from . import parallel as data_parallel
+from .parallel import make_mesh, make_parallel_step_fn, replicate, shard_batch
 
 __all__ = [
     "Checkpointer", "ConfigError", "apply_overrides", "config_to_dict", "parse_value", "MetricLogger",
     "ProgressBar", "format_metrics", "default_cache_dir", "enable_compilation_cache", "make_step_fn",
-    "run_training",
+    "run_training", "data_parallel", "make_mesh", "make_parallel_step_fn", "replicate", "shard_batch",
 ]

@@ -34,7 +34,7 @@ from .checkpoint import Checkpointer
 from .config import config_to_dict
 from .logging import MetricLogger, ProgressBar
 
-__all__ = ["enable_compilation_cache", "default_cache_dir", "make_step_fn", "run_training"]
+__all__ = ["enable_compilation_cache", "default_cache_dir", "make_step_fn", "run_training", "step_body"]
 
 CACHE_ENV = "INBETWEEN_JAX_CACHE"
 
@@ -73,15 +73,16 @@ def _signature(tree: Any) -> Any:
     return jax.tree.map(lambda x: (tuple(jnp.shape(x)), jnp.result_type(x)), tree)
 
 
-def make_step_fn(train_step_fn: Callable, train_base: jax.Array) -> Callable:
-    """Jit ``(state, batch, i) -> (state, metrics)`` with the step key ``fold_in(train_base, i)``.
+def step_body(train_step_fn: Callable) -> Callable:
+    """Un-jitted ``(state, batch, i, base) -> (state, metrics)`` with the step key ``fold_in(base, i)``.
 
-    The state argument is donated; the returned state must keep the input's structure, shapes and
-    dtypes (checked at trace time, otherwise every step would recompile).
+    The base key is an argument, not a constant baked into the program, so runs with different seeds
+    share one compiled executable (and one persistent-cache entry).  The returned state must keep the
+    input's structure, shapes and dtypes (checked at trace time, otherwise every step would recompile).
     """
 
-    def step(state, batch, i):
-        key = jax.random.fold_in(train_base, i)
+    def step(state, batch, i, base):
+        key = jax.random.fold_in(base, i)
         new_state, metrics = train_step_fn(state, batch, key)
         new_state = jax.tree.map(_strong, new_state)
         if jax.tree.structure(new_state) != jax.tree.structure(state) or _signature(new_state) != _signature(state):
@@ -89,7 +90,31 @@ def make_step_fn(train_step_fn: Callable, train_base: jax.Array) -> Callable:
                             f"its input; got {_signature(new_state)} for {_signature(state)}")
         return new_state, dict(metrics)
 
-    return jax.jit(step, donate_argnums=0)
+    return step
+
+
+class BoundStep:
+    """A jitted ``(state, batch, i, base)`` step bound to one base key: call as ``step(state, batch, i)``.
+
+    ``lower`` / ``trace`` take the same three arguments (for compile-time measurements).
+    """
+
+    def __init__(self, jitted: Callable, base: jax.Array):
+        self.jitted, self.base = jitted, base
+
+    def __call__(self, state, batch, i):
+        return self.jitted(state, batch, i, self.base)
+
+    def lower(self, state, batch, i):
+        return self.jitted.lower(state, batch, i, self.base)
+
+    def trace(self, state, batch, i):
+        return self.jitted.trace(state, batch, i, self.base)
+
+
+def make_step_fn(train_step_fn: Callable, train_base: jax.Array) -> BoundStep:
+    """:func:`step_body` jitted with the state argument donated, bound to ``train_base``."""
+    return BoundStep(jax.jit(step_body(train_step_fn), donate_argnums=0), train_base)
 
 
 def _check_finite(step: int, metrics: dict) -> None:
@@ -104,7 +129,7 @@ def run_training(init_fn: Callable[[jax.Array], Any],
                  batch_fn: Callable[[int, jax.Array], Any],
                  config: Any, run_dir: str | os.PathLike, num_steps: int, log_every: int = 100,
                  ckpt_every: int = 1000, seed: int = 0, *, max_to_keep: int = 3, progress: bool = True,
-                 compilation_cache: bool = True) -> tuple[Any, list[dict]]:
+                 compilation_cache: bool = True, mesh: Any = None) -> tuple[Any, list[dict]]:
     """Train for ``num_steps`` total updates, resuming from ``run_dir/checkpoints`` when possible.
 
     Args:
@@ -120,6 +145,8 @@ def run_training(init_fn: Callable[[jax.Array], Any],
         seed: base PRNG seed (see module docstring for how keys are derived).
         max_to_keep: checkpoints kept on disk.  progress: show a tqdm bar.
         compilation_cache: call :func:`enable_compilation_cache` first.
+        mesh: optional 1-D ``jax.sharding.Mesh`` (:func:`inbetween_jax.train.make_mesh`): data-parallel
+            training, state replicated and every batch split over the mesh (see ``train.parallel``).
     Returns:
         ``(state, logged)``: the final state and the rows logged *by this call*,
         each ``{"step": n, name: float, ...}``.
@@ -150,7 +177,11 @@ def run_training(init_fn: Callable[[jax.Array], Any],
 
         logger = MetricLogger(run_dir, resume_step=start)
         bar = ProgressBar(num_steps, initial=start, disable=not progress)
-        step_fn = make_step_fn(train_step_fn, train_base)
+        if mesh is None:
+            step_fn = make_step_fn(train_step_fn, train_base)
+        else:
+            from .parallel import make_parallel_step_fn, replicate
+            state, step_fn = replicate(state, mesh), make_parallel_step_fn(train_step_fn, train_base, mesh)
         config_json = config_to_dict(config)
         logged: list[dict] = []
         pending: list[tuple[int, dict]] = []  # device metrics not yet checked (avoids a sync per step)

@@ -1,0 +1,368 @@
+"""Previews of motions: contact sheets, animated GIFs and error-over-time plots (matplotlib, Agg).
+
+Conventions: ``positions`` are (T, J, 3) global joint positions in cm, Y up, floor on the XZ plane;
+``parents`` is the skeleton's parent array (``parents[0] == -1``, ``parents[j] < j``).
+Every writer validates its inputs first (``ValueError`` with a one-line message, nothing written),
+creates the output folder if needed, writes to a temporary file beside ``path`` and renames it into
+place, and returns ``path``.  :func:`preview_writers` / :func:`bvh_previews` (used by the ``inbetween``
+command) check a motion's inputs up front and return such writers for files named after the motion.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from typing import Mapping, Optional, Sequence
+
+import matplotlib
+
+matplotlib.use("Agg")  # no screen: never pick an interactive backend from the environment
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
+
+KEY_COLOR = "#000000"        # keyframes
+GENERATED_COLOR = "#999999"  # generated (in-between) frames
+OTHER_COLOR = "#1f77b4"      # frames that are neither (context / ground truth)
+OTHER_COLOR_B = "#d62728"    # second character
+FLOOR_COLOR = "#d9d9d9"
+
+
+# ----------------------------------------------------------------------------------------- checks
+def _check_parents(parents) -> tuple:
+    try:
+        par = tuple(int(p) for p in parents)
+    except (TypeError, ValueError):
+        raise ValueError("parents must be a sequence of ints") from None
+    if not par or par[0] != -1 or any(not 0 <= p < j for j, p in enumerate(par) if j > 0):
+        raise ValueError("parents must have parents[0] == -1 and 0 <= parents[j] < j")
+    return par
+
+
+def _check_positions(positions, parents, name: str = "positions"):
+    """-> ((T, J, 3) float64 array, parents tuple); ValueError naming the first problem."""
+    par = _check_parents(parents)
+    pos = np.asarray(positions, dtype=np.float64)
+    if pos.ndim != 3 or pos.shape[-1] != 3:
+        raise ValueError(f"{name} must have shape (T, J, 3), got {pos.shape}")
+    if pos.shape[0] == 0:
+        raise ValueError(f"{name} have no frames")
+    if pos.shape[1] != len(par):
+        raise ValueError(f"{name} have {pos.shape[1]} joints but the skeleton has {len(par)}")
+    bad = ~np.isfinite(pos)
+    if bad.any():
+        t, j, _ = np.argwhere(bad)[0]
+        what = "NaN" if np.isnan(pos[t, j]).any() else "inf"
+        raise ValueError(f"{name} contain {what} at frame {t} (joint {j})")
+    return pos, par
+
+
+def _check_keyframes(keyframes, num_frames: int) -> list:
+    keys = sorted({int(k) for k in keyframes})
+    out = [k for k in keys if not 0 <= k < num_frames]
+    if out:
+        raise ValueError(f"keyframe {out[0]} is outside the {num_frames} frames")
+    return keys
+
+
+def _check_generated(generated, num_frames: int) -> np.ndarray:
+    gen = np.asarray(generated)
+    if gen.shape != (num_frames,) or gen.dtype != bool:
+        raise ValueError(f"generated must be a ({num_frames},) bool array, got {gen.dtype} {gen.shape}")
+    return gen
+
+
+def _check_curve(values, name: str, length: Optional[int] = None) -> np.ndarray:
+    arr = np.asarray(values, dtype=np.float64)
+    if arr.ndim != 1 or arr.shape[0] == 0:
+        raise ValueError(f"{name} must be a non-empty 1-D array, got shape {arr.shape}")
+    if length is not None and arr.shape[0] != length:
+        raise ValueError(f"{name} has {arr.shape[0]} values but times has {length}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} contains a non-finite value at index {int(np.argmax(~np.isfinite(arr)))}")
+    return arr
+
+
+# ------------------------------------------------------------------------------------ geometry
+def _heading(points_xz: np.ndarray) -> np.ndarray:
+    """Unit XZ direction of the overall motion of a (T, 2) trajectory (principal axis if it barely moves)."""
+    d = points_xz[-1] - points_xz[0]
+    if np.linalg.norm(d) < 1.0:
+        centred = points_xz - points_xz.mean(0)
+        if np.abs(centred).max(initial=0.0) < 1e-6:
+            return np.array([1.0, 0.0])
+        d = np.linalg.svd(centred, full_matrices=False)[2][0]
+    return d / np.linalg.norm(d)
+
+
+def _side_view(pos: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """(..., J, 3) -> (..., J, 2): (coordinate along ``u`` on the floor, height)."""
+    return np.stack([pos[..., 0] * u[0] + pos[..., 2] * u[1], pos[..., 1]], axis=-1)
+
+
+def _bones(parents) -> list:
+    return [(p, j) for j, p in enumerate(parents) if p >= 0]
+
+
+# ------------------------------------------------------------------------------------- writing
+def _save_atomic(path, suffix: str, save) -> str:
+    """Call ``save(tmp_path)`` on a temporary file beside ``path``, then rename it to ``path``."""
+    path = os.fspath(path)
+    directory = os.path.dirname(os.path.abspath(path))
+    os.makedirs(directory, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=directory, prefix=f".{os.path.basename(path)}.", suffix=suffix)
+    os.close(fd)
+    try:
+        os.chmod(tmp, 0o644)  # mkstemp makes 0600; a preview is an ordinary file
+        save(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
+    return path
+
+
+# ---------------------------------------------------------------------------------- public API
+def contact_sheet(positions, parents, path, every: int = 5, keyframes: Sequence[int] = (),
+                  title: Optional[str] = None, generated=None, *, height: float = 2.5, dpi: int = 100,
+                  first_frame: int = 0) -> str:
+    """Stick figures of every ``every``-th frame (plus every keyframe) side by side, as a PNG.
+
+    positions: (T, J, 3) global positions (cm, Y up); parents: (J,) parent array.
+    keyframes: frame indices drawn in black; generated: optional (T,) bool, True frames drawn grey;
+    other frames are drawn blue. The view is from the side with the overall motion going left to
+    right; poses keep their place along the path unless they would overlap, then they are spread
+    evenly. ``height`` (inches) and ``dpi`` set the image size; ``first_frame`` only shifts the
+    frame numbers printed under the poses. Returns ``path``.
+    """
+    pos, par = _check_positions(positions, parents)
+    t = pos.shape[0]
+    if int(every) < 1:
+        raise ValueError(f"every must be >= 1, got {every}")
+    keys = _check_keyframes(keyframes, t)
+    gen = np.zeros(t, bool) if generated is None else _check_generated(generated, t)
+    frames = sorted(set(range(0, t, int(every))) | set(keys))
+
+    u = _heading(pos[:, 0, [0, 2]])
+    xy = _side_view(pos[frames], u)                          # (F, J, 2)
+    root_x = xy[:, 0, 0].copy()
+    local_x = xy[..., 0] - root_x[:, None]
+    width = max(float(np.ptp(xy[..., 0], axis=1).max()), 20.0)
+    gaps = np.diff(root_x)
+    if len(frames) > 1 and gaps.min() < 0.9 * width:          # would overlap: spread evenly
+        root_x = np.arange(len(frames)) * 1.15 * width
+    xy[..., 0] = local_x + root_x[:, None]
+
+    xmin, xmax = xy[..., 0].min() - 0.1 * width, xy[..., 0].max() + 0.1 * width
+    ymin, ymax = min(0.0, xy[..., 1].min()) - 16.0, xy[..., 1].max() + 10.0  # room for frame numbers
+    fig_w = min(max(height * (xmax - xmin) / (ymax - ymin), 2.0), 60.0)
+    style = {"lines.antialiased": False, "text.antialiased": False, "patch.antialiased": False}
+    with plt.rc_context(style):
+        fig = plt.figure(figsize=(fig_w, height + (0.3 if title else 0.0)), dpi=dpi, facecolor="white")
+        try:
+            ax = fig.add_axes((0.0, 0.0, 1.0, height / (height + (0.3 if title else 0.0))))
+            ax.set_axis_off()
+            ax.set_xlim(xmin, xmax)
+            ax.set_ylim(ymin, ymax)
+            ax.set_aspect("equal", adjustable="box")
+            ax.plot([xmin, xmax], [0.0, 0.0], color=FLOOR_COLOR, lw=1.0, zorder=0)
+            for f, (frame, pose) in enumerate(zip(frames, xy)):
+                is_key = frame in keys
+                color = KEY_COLOR if is_key else GENERATED_COLOR if gen[frame] else OTHER_COLOR
+                for p, j in _bones(par):
+                    ax.plot(pose[[p, j], 0], pose[[p, j], 1], color=color, lw=2.0 if is_key else 1.5,
+                            solid_capstyle="round", zorder=2 if is_key else 1)
+                if is_key:
+                    ax.text(root_x[f], ymin + 1.0, str(frame + first_frame), ha="center", va="bottom",
+                            fontsize=7, color=KEY_COLOR)
+            if title:
+                fig.suptitle(title, fontsize=9, y=0.99, va="top")
+            _save_atomic(path, ".png", lambda tmp: fig.savefig(tmp, format="png", dpi=dpi,
+                                                               facecolor="white"))
+        finally:
+            plt.close(fig)
+    return os.fspath(path)
+
+
+def animate(positions, parents, path, fps: float = 30, keyframes: Sequence[int] = (),
+            positions_b=None, parents_b=None, *, stride: int = 1, view: str = "side", size: float = 3.0,
+            dpi: int = 80, first_frame: int = 0) -> str:
+    """Animated GIF of one character, or two (interaction) when ``positions_b`` is given.
+
+    positions: (T, J, 3); positions_b: optional (T, Jb, 3) on ``parents_b`` (default: ``parents``).
+    Frames 0, stride, 2*stride, ... are drawn, so the GIF has ``len(range(0, T, stride))`` frames
+    played at ``fps / stride``. Keyframes are drawn black and thicker, with "key" in the caption.
+    view: ``"side"`` (2-D, horizontal axis along the motion, or across the two characters) or
+    ``"3d"``. ``size`` (inches, square) and ``dpi`` set the image size. Returns ``path``.
+    """
+    pos, par = _check_positions(positions, parents)
+    t = pos.shape[0]
+    chars = [(pos, par, OTHER_COLOR)]
+    if positions_b is not None:
+        pos_b, par_b = _check_positions(positions_b, parents if parents_b is None else parents_b, "positions_b")
+        if pos_b.shape[0] != t:
+            raise ValueError(f"positions_b have {pos_b.shape[0]} frames but positions have {t}")
+        chars.append((pos_b, par_b, OTHER_COLOR_B))
+    if view not in ("side", "3d"):
+        raise ValueError(f"view must be 'side' or '3d', got {view!r}")
+    if int(stride) < 1 or not fps > 0:
+        raise ValueError(f"stride must be >= 1 and fps > 0, got stride={stride}, fps={fps}")
+    keys = set(_check_keyframes(keyframes, t))
+    frames = list(range(0, t, int(stride)))
+
+    allpos = np.concatenate([c[0] for c in chars], axis=1)   # (T, J+Jb, 3)
+    if len(chars) == 2:
+        u = _heading(np.stack([pos[0, 0, [0, 2]], chars[1][0][0, 0, [0, 2]]]))
+    else:
+        u = _heading(pos[:, 0, [0, 2]])
+    fig = plt.figure(figsize=(size, size), dpi=dpi, facecolor="white")
+    try:
+        if view == "3d":
+            ax = fig.add_subplot(projection="3d")
+            lo, hi = allpos.min((0, 1)), allpos.max((0, 1))
+            mid, half = (lo + hi) / 2, max(float((hi - lo).max()) / 2, 50.0)
+            ax.set_xlim(mid[0] - half, mid[0] + half)
+            ax.set_ylim(-mid[2] - half, -mid[2] + half)  # matplotlib's z is up: plot (x, -z, y),
+            ax.set_zlim(0.0, 2 * half)                      # which keeps the axes right-handed
+            ax.set_xlabel("x")
+            ax.set_ylabel("-z")
+            ax.set_zlabel("y")
+            data = [c[0][..., [0, 2, 1]] * np.array([1.0, -1.0, 1.0]) for c in chars]
+        else:
+            ax = fig.add_subplot()
+            proj = _side_view(allpos, u)
+            xmin, xmax = proj[..., 0].min() - 20.0, proj[..., 0].max() + 20.0
+            ymax = proj[..., 1].max() + 20.0
+            ax.set_xlim(xmin, xmax)
+            ax.set_ylim(min(0.0, proj[..., 1].min()) - 10.0, ymax)
+            ax.set_aspect("equal", adjustable="box")
+            ax.axhline(0.0, color=FLOOR_COLOR, lw=1.0, zorder=0)
+            ax.set_xticks([])
+            ax.set_yticks([])
+            data = [_side_view(c[0], u) for c in chars]
+        lines = [[ax.plot([], [], lw=2.0, color=col)[0] for _ in _bones(p)] for (_, p, col) in chars]
+        caption = ax.set_title("", fontsize=9)
+
+        def draw(k):
+            f = frames[k]
+            key = f in keys
+            for (_, p, col), d, ls in zip(chars, data, lines):
+                for line, (a, b) in zip(ls, _bones(p)):
+                    if view == "3d":
+                        line.set_data_3d(d[f, [a, b], 0], d[f, [a, b], 1], d[f, [a, b], 2])
+                    else:
+                        line.set_data(d[f, [a, b], 0], d[f, [a, b], 1])
+                    line.set_color(KEY_COLOR if key else col)
+                    line.set_linewidth(3.0 if key else 2.0)
+            caption.set_text(f"frame {f + first_frame}" + (" (key)" if key else ""))
+            return [ln for ls in lines for ln in ls] + [caption]
+
+        anim = FuncAnimation(fig, draw, frames=len(frames), blit=False, repeat=False)
+        writer = PillowWriter(fps=float(fps) / int(stride))
+        _save_atomic(path, ".gif", lambda tmp: anim.save(tmp, writer=writer, dpi=dpi))
+    finally:
+        plt.close(fig)
+    return os.fspath(path)
+
+
+def plot_error_over_time(times, mean, lo, hi, path, label: str, baseline: Optional[Mapping] = None,
+                         ylabel: str = "L2P error", *, xlabel: str = "frame of the transition",
+                         title: Optional[str] = None, dpi: int = 100) -> str:
+    """Error along the transition with a shaded diversity band, as a PNG.
+
+    times, mean, lo, hi: (T,) arrays; the band spans lo..hi (min..max, or mean -/+ std, over
+    samples) and needs lo <= hi. baseline: optional {label: (T,) curve}, drawn dashed.
+    Returns ``path``.
+    """
+    x = _check_curve(times, "times")
+    m, l_, h = (_check_curve(v, n, len(x)) for v, n in ((mean, "mean"), (lo, "lo"), (hi, "hi")))
+    if np.any(l_ > h):
+        raise ValueError(f"lo > hi at index {int(np.argmax(l_ > h))}")
+    curves = {str(k): _check_curve(v, f"baseline {k!r}", len(x)) for k, v in (baseline or {}).items()}
+    fig = plt.figure(figsize=(5.0, 3.2), dpi=dpi, facecolor="white")
+    try:
+        ax = fig.add_subplot()
+        line = ax.plot(x, m, lw=2.0, label=label)[0]
+        ax.fill_between(x, l_, h, color=line.get_color(), alpha=0.25, lw=0.0, label=f"{label} (range)")
+        for name, curve in curves.items():
+            ax.plot(x, curve, ls="--", lw=1.5, label=name)
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(ylabel)
+        if title:
+            ax.set_title(title, fontsize=10)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, frameon=False)
+        fig.tight_layout()
+        _save_atomic(path, ".png", lambda tmp: fig.savefig(tmp, format="png", dpi=dpi, facecolor="white"))
+    finally:
+        plt.close(fig)
+    return os.fspath(path)
+
+
+# ------------------------------------------------------------------------------- BVH previews
+def motion_positions(motion) -> np.ndarray:
+    """(T, J, 3) global joint positions of a :class:`inbetween_jax.data.Motion` (forward kinematics)."""
+    from inbetween_jax.geometry import forward_kinematics
+    return np.asarray(forward_kinematics(motion.local_quats, motion.local_pos, motion.skeleton.parents)[1])
+
+
+def preview_writers(positions, parents, name: str, *, fps: float = 30.0, every: int = 5,
+                    keyframes: Sequence[int] = (), generated=None, gif: bool = False, stride: int = 1,
+                    title: Optional[str] = None, first_frame: int = 0, positions_b=None, parents_b=None) -> dict:
+    """Checked writers of a motion's previews, ``{file name: writer(path) -> path}``, to be called later
+    (e.g. all into a temporary folder, so that a failure writes nothing).
+
+    positions: (T, J, 3); keyframes / generated / every / first_frame as in :func:`contact_sheet`.
+    One character: ``<name>_sheet.png`` (and ``<name>.gif`` with ``gif``, every ``stride``-th frame).
+    Two characters (positions_b (T, Jb, 3) on ``parents_b``, default ``parents``): one sheet per character,
+    ``<name>_A_sheet.png`` and ``<name>_B_sheet.png``, and one GIF showing both.
+    The inputs are checked here (ValueError with a one-line message).
+    """
+    pos, par = _check_positions(positions, parents)
+    t = pos.shape[0]
+    chars = [("", pos, par)]
+    if positions_b is not None:
+        pos_b, par_b = _check_positions(positions_b, parents if parents_b is None else parents_b, "positions_b")
+        if pos_b.shape[0] != t:
+            raise ValueError(f"positions_b have {pos_b.shape[0]} frames but positions have {t}")
+        chars = [("_A", pos, par), ("_B", pos_b, par_b)]
+    if int(every) < 1 or int(stride) < 1 or not fps > 0:
+        raise ValueError(f"every and stride must be >= 1 and fps > 0, got every={every}, stride={stride}, fps={fps}")
+    keys = _check_keyframes(keyframes, t)
+    gen = None if generated is None else _check_generated(generated, t)
+    files = {}
+    for suffix, p, pa in chars:
+        label = f"{title}{' -- character ' + suffix[1] if suffix else ''}" if title else None
+        files[f"{name}{suffix}_sheet.png"] = (
+            lambda path, p=p, pa=pa, label=label: contact_sheet(p, pa, path, every=int(every), keyframes=keys,
+                                                                title=label, generated=gen, first_frame=first_frame))
+    if gif:
+        two = len(chars) == 2
+        files[f"{name}.gif"] = lambda path: animate(
+            pos, par, path, fps=fps, keyframes=keys, positions_b=chars[1][1] if two else None,
+            parents_b=chars[1][2] if two else None, stride=int(stride), first_frame=first_frame)
+    return files
+
+
+def bvh_previews(motion, name: str, frames=(None, None), every: int = 5, keyframes: Sequence[int] = (),
+                 gif: bool = False) -> dict:
+    """Checked writers (see :func:`preview_writers`) of the previews of frames [a, b) of a BVH motion.
+
+    frames: (a, b), either may be None; negative numbers count from the end.  keyframes: frame numbers
+    of the file (drawn black; they must lie in the selection); the sheet and the GIF print file frame
+    numbers.  Writes ``<name>_sheet.png`` (and ``<name>.gif``).
+    """
+    n = motion.num_frames
+    a, b = frames
+    sel = range(n)[slice(a, b)]
+    if len(sel) == 0:
+        raise ValueError(f"{name}: frames {'' if a is None else a}:{'' if b is None else b} select none of "
+                         f"its {n} frames")
+    first = sel.start
+    keys = [int(k) - first for k in keyframes]
+    if any(not 0 <= k < len(sel) for k in keys):
+        raise ValueError(f"{name}: keyframes {list(keyframes)} must lie in the selected frames "
+                         f"[{first}, {first + len(sel)})")
+    part = motion.slice(sel.start, sel.stop)
+    return preview_writers(motion_positions(part), part.skeleton.parents, name, fps=motion.fps, every=every,
+                           keyframes=keys, gif=gif, title=name, first_frame=first)
