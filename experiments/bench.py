@@ -4,10 +4,10 @@ Writes ``<results>/bench.md`` and ``<results>/bench.json``:
 1. the official LaFAN1 baseline table (zero-velocity / interpolation; L2Q, L2P, NPSS at 5/15/30/45,
    10 past frames);
 2. the S-CVAE paper's Table 1 layout (APD L2P L2Q ADE SLDE NPSS FootSlide at 10/30/50, one past keyframe);
-3. the speed section (``experiments/bench_speed.py``: JAX against PyTorch eager, inference, compile times;
-   ``--no-speed`` skips it);
-4. each model's own tables when ``experiments/bench_<model>.py`` exists and a checkpoint is found in
-   ``runs/<model>`` (or ``--ckpt-root``); models without a checkpoint are listed as skipped.
+3. each model's own tables when ``experiments/bench_<model>.py`` exists and a checkpoint is found in
+   ``runs/<model>`` (or ``--ckpt-root``); models without a checkpoint are listed as skipped;
+4. the speed section (``experiments/bench_speed.py``: JAX against PyTorch eager, inference, compile times;
+   ``--no-speed`` skips it).
 
 L2P statistics: computed from the source's training windows, or read from ``--l2p-stats FILE.npz``
 (``x_mean``, ``x_std`` of shape (1, J*3, 1), e.g. the official LaFAN1 ``train_stats``).
