@@ -110,12 +110,12 @@ def test_each_ablation_switch_changes_the_computation(setup):
     key = jax.random.key(3)
     stats, disc = state["stats"], state["disc"]
     with jax.disable_jit():   # eager: 8 configurations without 8 compilations
-        base_loss, (_, base_out) = T.generator_loss(state["params"], disc, CFG, stats, batch, key, data.parents, MAXLEN)
+        base_loss, (_, base_out, _) = T.generator_loss(state["params"], disc, CFG, stats, batch, key, data.parents, MAXLEN)
         for name in SWITCHES:
             cfg = dataclasses.replace(CFG, model=dataclasses.replace(CFG.model, **{name: False}))
             params = _ablated_params(state["params"], name)
             if name in ("discriminators", "stitch_loss"):   # loss-only switches: same motion, different loss
-                loss, (m, out) = T.generator_loss(params, disc, cfg, stats, batch, key, data.parents, MAXLEN)
+                loss, (m, out, _) = T.generator_loss(params, disc, cfg, stats, batch, key, data.parents, MAXLEN)
                 np.testing.assert_allclose(out["r"], base_out["r"], atol=1e-5)
                 assert abs(float(loss) - float(base_loss)) > 1e-4, f"switching off {name} changed nothing"
             else:
@@ -149,3 +149,23 @@ def test_packed_layers_equal_plain_layers():
                                rtol=1e-5, atol=1e-6)
     # and the blend really depends on the gate (not a trivially equal pair of zeros)
     assert float(jnp.abs(nn.moe(p["moe"], y1, alpha) - nn.moe(p["moe"], y1, alpha[:, ::-1])).max()) > 1e-3
+
+
+@pytest.mark.parametrize("switch", [None, "encoder_lstm", "phase_moe", "bidirectional"])
+def test_deferred_weight_gradients_equal_autodiff(setup, switch):
+    """Taps + one matmul after the scan give the same gradient as autodiff through the scan."""
+    data, state, batch = setup
+    cfg = CFG if switch is None else dataclasses.replace(CFG, model=dataclasses.replace(CFG.model, **{switch: False}))
+    params = jax.tree.map(jnp.asarray, _ablated_params(state["params"], switch)) if switch else state["params"]
+    args = (state["disc"], cfg, state["stats"], batch, jax.random.key(5), data.parents, MAXLEN)
+    plain = jax.grad(lambda p: T.generator_loss(p, *args)[0])(params)
+    taps = scvae.make_taps(params, cfg.model, batch["q"].shape[0], MAXLEN)
+    (_, (_, _, recs)), (g, g_taps) = jax.value_and_grad(
+        lambda p, t: T.generator_loss(p, *args, t), argnums=(0, 1), has_aux=True)(params, taps)
+    assert recs, "no matmul inputs were recorded"
+    deferred = scvae.deferred_weight_grads(params, recs, g_taps)
+    lstm_wx = deferred["fwd"]["dec"]["lstm"]["wx"]
+    assert float(jnp.abs(lstm_wx).max()) > 0 and float(jnp.abs(g["fwd"]["dec"]["lstm"]["wx"]).max()) == 0
+    total = jax.tree.map(jnp.add, g, deferred)
+    for (path, a), b in zip(jax.tree_util.tree_leaves_with_path(plain), jax.tree.leaves(total)):
+        np.testing.assert_allclose(b, a, rtol=2e-4, atol=2e-6, err_msg=jax.tree_util.keystr(path))

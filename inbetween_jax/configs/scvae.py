@@ -64,6 +64,7 @@ class TrainConfig:
     log_every: int = 50
     ckpt_every: int = 500
     seed: int = 0
+    deferred_wgrad: bool = True    # speed only: the largest weight gradients as one matmul after the scan
 
 
 @dataclasses.dataclass(frozen=True)

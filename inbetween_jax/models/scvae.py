@@ -89,13 +89,14 @@ def reverse_time(f: dict) -> dict:
 
 
 # ----------------------------------------------------------------------------- one generator step
-def encode(p: dict, cfg, carry, cur: dict, tgt: dict, tta, gamma, key, stats: dict):
+def encode(p: dict, cfg, carry, cur: dict, tgt: dict, tta, gamma, key, stats: dict, taps=None, rec=None):
     """S-CVAE encoder (Fig. 3) for one step.
 
     Stage 1 embeds (current, offset, target) -> LSTM -> N(mu, sigma); stage 2 replaces the current frame
     by the target (offset 0, tta 0) -> the same LSTM from the same carry -> N(mu_t, sigma_t).  Latent
     interpolation (Eq. 1) blends the two distributions' parameters with ``gamma`` (B,) and z is sampled.
-    Returns (new_enc_carry, z (B, Z), kl (B,), state_emb (B, O), target_emb (B, O)).
+    Returns (new_enc_carry, z (B, Z), kl (B,), state_emb (B, O), target_emb (B, O)).  ``taps`` / ``rec``:
+    deferred weight gradients of the LSTM (see :func:`rollout`); the matmul inputs are stored in ``rec``.
     """
     tgt_q = align_sign(tgt["q"], cur["q"])
     b = cur["q"].shape[0]
@@ -115,7 +116,9 @@ def encode(p: dict, cfg, carry, cur: dict, tgt: dict, tta, gamma, key, stats: di
     x1 = jnp.concatenate([s1, o1, t1], -1)
     x2 = jnp.concatenate([s2, o2, t2], -1)
     if cfg.encoder_lstm:
-        new_carry, h1, h2 = nn.lstm_shared_carry(p["lstm"], carry, x1, x2)
+        new_carry, h1, h2 = nn.lstm_shared_carry(p["lstm"], carry, x1, x2, taps)
+        if rec is not None:
+            rec.update(enc_wh=carry[0], enc_wx=jnp.concatenate([x1, x2], axis=0))
     else:
         new_carry = carry
         h1, h2 = jax.nn.elu(nn.mlp(p["mlp"], x1)), jax.nn.elu(nn.mlp(p["mlp"], x2))
@@ -130,18 +133,24 @@ def encode(p: dict, cfg, carry, cur: dict, tgt: dict, tta, gamma, key, stats: di
     return new_carry, z, kl, s1, t1
 
 
-def decode(p: dict, cfg, carry, z, s_emb, t_emb, cur: dict, stats: dict):
+def decode(p: dict, cfg, carry, z, s_emb, t_emb, cur: dict, stats: dict, taps=None, rec=None):
     """S-CVAE decoder (Fig. 5): LSTM over [z, state emb, target emb] (16 + 256 + 256 = 528 wide), then
     the phase-gated mixture of experts.  Predicts root velocity, local-quaternion updates and contacts.
     Returns (new_dec_carry, next_frame without phase)."""
     b, j = cur["q"].shape[:2]
-    lstm_step = nn.lstm_packed if "w" in p["lstm"] else nn.lstm
-    new_carry, h = lstm_step(p["lstm"], carry, jnp.concatenate([z, s_emb, t_emb], -1))
+    x = jnp.concatenate([z, s_emb, t_emb], -1)
+    if "w" in p["lstm"]:          # packed (inside rollout); taps need the packed layers
+        taps = taps or {}
+        new_carry, h = nn.lstm_packed(p["lstm"], carry, x, taps.get("dec_w"))
+    else:
+        new_carry, h = nn.lstm(p["lstm"], carry, x)
     if cfg.phase_moe:
         alpha = jax.nn.softmax(nn.mlp(p["gating"], jax.lax.stop_gradient(cur["phase"])), -1)
     else:
         alpha = jnp.ones((b, 1), h.dtype)
-    out = nn.moe(p["experts"], h, alpha)
+    out = nn.moe(p["experts"], h, alpha, (taps or {}).get("moe0"))
+    if rec is not None and taps:
+        rec.update(dec_w=jnp.concatenate([x, carry[0]], -1), moe0=h)
     dq = out[:, :4 * j].reshape(b, j, 4)
     v = out[:, 4 * j:4 * j + 3] * stats["v_std"]
     c = jax.nn.sigmoid(out[:, 4 * j + 3:])
@@ -149,10 +158,13 @@ def decode(p: dict, cfg, carry, z, s_emb, t_emb, cur: dict, stats: dict):
     return new_carry, {"q": q, "r": cur["r"] + v, "v": v, "c": c}
 
 
-def generator_step(p: dict, cfg, carry, cur: dict, tgt: dict, tta, gamma, key, stats: dict):
-    """f_{i+1} = G(f_i | f_target).  Returns (new_carry, next_frame (with phase), kl (B,))."""
-    enc_carry, z, kl, s_emb, t_emb = encode(p["enc"], cfg, carry["enc"], cur, tgt, tta, gamma, key, stats)
-    dec_carry, nxt = decode(p["dec"], cfg, carry["dec"], z, s_emb, t_emb, cur, stats)
+def generator_step(p: dict, cfg, carry, cur: dict, tgt: dict, tta, gamma, key, stats: dict, taps=None,
+                   rec=None):
+    """f_{i+1} = G(f_i | f_target).  Returns (new_carry, next_frame (with phase), kl (B,)).
+    ``taps`` / ``rec``: deferred weight gradients (see :func:`rollout`)."""
+    enc_carry, z, kl, s_emb, t_emb = encode(p["enc"], cfg, carry["enc"], cur, tgt, tta, gamma, key, stats,
+                                            taps, rec)
+    dec_carry, nxt = decode(p["dec"], cfg, carry["dec"], z, s_emb, t_emb, cur, stats, taps, rec)
     nxt["phase"] = phase_step(jax.lax.stop_gradient(p["phase"]), cur, stats, state_features)
     return {"enc": enc_carry, "dec": dec_carry}, nxt, kl
 
@@ -182,7 +194,8 @@ def _select(pred, a: dict, b: dict) -> dict:
     return {k: jnp.where(pred, a[k], b[k]) for k in a}
 
 
-def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, key, max_length: int):
+def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, key, max_length: int,
+            taps=None):
     """Generate the transition between two keyframes ``length`` frames apart (L in the paper).
 
     start / target: frames at times 0 and L (``v`` ignored: one keyframe carries no velocity; ``phase``
@@ -194,6 +207,9 @@ def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, k
       ``fwd`` / ``bwd``: frames (B, S, ...) in generation order (fwd step m = frame m+1, bwd step m =
       frame L-1-m), ``kl_fwd`` / ``kl_bwd`` (B, S), ``valid`` (S,) bool, ``out``: stitched frames
       (B, max_length+1, ...) for times 0..max_length (times > L repeat the target), ``h``, ``k``.
+    taps: optional ``{"fwd": {name: (S, rows, cols) zeros}, "bwd": ...}`` from :func:`make_taps`: the
+    largest matmuls then leave their weight gradient to the caller (``nn.tapped_matmul``) and the result
+    also holds ``rec_fwd`` / ``rec_bwd``: their inputs per step, {name: (S, rows, d_in)}.
     """
     steps = num_scan_steps(cfg, max_length)
     b = start["q"].shape[0]
@@ -214,9 +230,11 @@ def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, k
         carry_b = None
     keys = jax.random.split(key, steps)
     ones = jnp.ones((b,), jnp.float32)
+    taps = taps or {}
 
     def body(carry, xs):
-        n, step_key = xs
+        n, step_key, tap = xs
+        rec_f, rec_b = ({}, {}) if tap else (None, None)
         kf, kb = jax.random.split(step_key)
         (cf, cur_f), (cb, cur_b) = carry
         if cfg.bidirectional:
@@ -227,22 +245,24 @@ def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, k
         else:
             tgt_f, tta_f = t0, length - n
             gam_f = n / jnp.maximum(length - 1, 1) if cfg.latent_interp else 0.0
-        cf, nxt_f, kl_f = generator_step(params["fwd"], cfg, cf, cur_f, tgt_f, tta_f * ones, gam_f * ones, kf, stats)
+        cf, nxt_f, kl_f = generator_step(params["fwd"], cfg, cf, cur_f, tgt_f, tta_f * ones, gam_f * ones, kf, stats,
+                                         tap.get("fwd"), rec_f)
         out = {"fwd": nxt_f, "kl_fwd": kl_f}
         if cfg.bidirectional:
             tgt_b = _select(aligned, reverse_time(nxt_f), reverse_time(s0))
             tta_b = jnp.where(aligned, length - 2 * n - 1, length - n)
             cb, nxt_b, kl_b = generator_step(params["bwd"], cfg, cb, cur_b, tgt_b, tta_b * ones, gam_f * ones, kb,
-                                             stats)
+                                             stats, tap.get("bwd"), rec_b)
             out.update(bwd=nxt_b, kl_bwd=kl_b)
             cur_b = nxt_b
-        return ((cf, nxt_f), (cb, cur_b)), out
+        rec = {"fwd": rec_f, "bwd": rec_b} if tap else {}
+        return ((cf, nxt_f), (cb, cur_b)), (out, {k: v for k, v in rec.items() if v})
 
     init = ((carry_f, s0), (carry_b, reverse_time(t0)))
-    _, ys = jax.lax.scan(body, init, (jnp.arange(steps), keys))
+    _, (ys, recs) = jax.lax.scan(body, init, (jnp.arange(steps), keys, taps))
     ys = jax.tree.map(lambda x: jnp.swapaxes(x, 0, 1), ys)  # (B, S, ...)
     m = jnp.arange(steps)
-    res = dict(ys, h=h, k=k)
+    res = dict(ys, h=h, k=k, **{f"rec_{g}": r for g, r in recs.items()})
     if cfg.bidirectional:
         res["valid"] = (m < h + k) & (m + 1 <= length - 1)
         res["out"] = stitch(start, target, ys["fwd"], reverse_frames(ys["bwd"]), length, h, k, max_length)
@@ -250,6 +270,41 @@ def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, k
         res["valid"] = m < length - 1
         res["out"] = forward_only(start, target, ys["fwd"], length, max_length)
     return res
+
+
+def make_taps(params: dict, cfg, batch: int, max_length: int) -> dict:
+    """Zero taps for :func:`rollout` (deferred weight gradients of the encoder LSTM, the packed decoder
+    LSTM and the first expert layer of each generator): {generator: {name: (S, rows, cols)}}."""
+    steps = num_scan_steps(cfg, max_length)
+    out = {}
+    for name, g in params.items():
+        four_h = g["dec"]["lstm"]["b"].shape[0]
+        e, o = g["dec"]["experts"][0]["b"].shape
+        t = {"dec_w": jnp.zeros((steps, batch, four_h)), "moe0": jnp.zeros((steps, batch, e * o))}
+        if cfg.encoder_lstm:
+            four_he = g["enc"]["lstm"]["b"].shape[0]
+            t.update(enc_wh=jnp.zeros((steps, batch, four_he)), enc_wx=jnp.zeros((steps, 2 * batch, four_he)))
+        out[name] = t
+    return out
+
+
+def deferred_weight_grads(params: dict, recs: dict, tap_grads: dict) -> dict:
+    """Weight gradients of the tapped matmuls, ``sum_t x_t^T g_t`` as one matmul each, mapped back to the
+    unpacked parameter layout.  recs: {generator: {name: (S, rows, d_in)}}; tap_grads like :func:`make_taps`.
+    Returns a pytree shaped like ``params`` (zeros where nothing was tapped), to add to the autodiff grads."""
+    out = jax.tree.map(jnp.zeros_like, params)
+    for name, rec in recs.items():
+        g = tap_grads[name]
+        dw = {k: rec[k].reshape(-1, rec[k].shape[-1]).T @ g[k].reshape(-1, g[k].shape[-1]) for k in rec}
+        dec = params[name]["dec"]
+        d_x = dec["lstm"]["wx"].shape[0]
+        e, i, o = dec["experts"][0]["w"].shape
+        gd = out[name]["dec"]
+        gd["lstm"]["wx"], gd["lstm"]["wh"] = dw["dec_w"][:d_x], dw["dec_w"][d_x:]
+        gd["experts"][0]["w"] = jnp.transpose(dw["moe0"].reshape(i, e, o), (1, 0, 2))
+        if "enc_wx" in dw:
+            out[name]["enc"]["lstm"]["wx"], out[name]["enc"]["lstm"]["wh"] = dw["enc_wx"], dw["enc_wh"]
+    return out
 
 
 def reverse_frames(fr: dict) -> dict:

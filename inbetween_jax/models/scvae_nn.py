@@ -89,16 +89,32 @@ def lstm(params: dict, carry, x):
     return (h, c), h
 
 
-def lstm_shared_carry(params: dict, carry, x1, x2):
+def tapped_matmul(x, w, tap=None):
+    """``x @ w``; with a ``tap`` (zeros shaped like the product) the weight gradient is left to the caller.
+
+    ``w`` is wrapped in ``stop_gradient`` and ``tap`` added to the product, so ``d loss / d tap`` is the
+    product's cotangent.  Given the recorded inputs x_t of every scan step, the caller forms
+    ``d loss / d w = sum_t x_t^T (d loss / d tap_t)`` as one large matmul after the scan instead of one
+    small matmul plus a full-size accumulating add per step.  Gradients to ``x`` are unchanged.
+    """
+    if tap is None:
+        return x @ w
+    return x @ jax.lax.stop_gradient(w) + tap
+
+
+def lstm_shared_carry(params: dict, carry, x1, x2, taps=None):
     """Two LSTM steps from the *same* carry on two inputs, as one matmul over 2B rows.
 
     ``h @ wh`` is computed once.  carry (h, c) each (B, H); x1, x2 (B, D).
-    Returns (carry after x1, h1 (B, H), h2 (B, H)) -- equal to two :func:`lstm` calls.
+    Returns (carry after x1, h1 (B, H), h2 (B, H)) -- equal to two :func:`lstm` calls.  ``taps``
+    (optional ``{"enc_wh": (B, 4H), "enc_wx": (2B, 4H)}``) defer the weight gradients (:func:`tapped_matmul`).
     """
     h, c = carry
     b = h.shape[0]
-    gh = h @ params["wh"] + params["b"]
-    gates = jnp.concatenate([x1, x2], axis=0) @ params["wx"] + jnp.concatenate([gh, gh], axis=0)
+    taps = taps or {}
+    gh = tapped_matmul(h, params["wh"], taps.get("enc_wh")) + params["b"]
+    gates = tapped_matmul(jnp.concatenate([x1, x2], axis=0), params["wx"], taps.get("enc_wx")) + \
+        jnp.concatenate([gh, gh], axis=0)
     i, f, g, o = jnp.split(gates, 4, axis=-1)
     c2 = jax.nn.sigmoid(f) * jnp.concatenate([c, c], axis=0) + jax.nn.sigmoid(i) * jnp.tanh(g)
     h2 = jax.nn.sigmoid(o) * jnp.tanh(c2)
@@ -110,10 +126,11 @@ def pack_lstm(params: dict) -> dict:
     return {"w": jnp.concatenate([params["wx"], params["wh"]], axis=0), "b": params["b"]}
 
 
-def lstm_packed(params: dict, carry, x):
-    """:func:`lstm` with packed weights: one ``[x, h] @ [wx; wh]`` matmul.  Same shapes and values."""
+def lstm_packed(params: dict, carry, x, tap=None):
+    """:func:`lstm` with packed weights: one ``[x, h] @ [wx; wh]`` matmul.  Same shapes and values.
+    ``tap`` (B, 4H) defers the weight gradient (:func:`tapped_matmul`)."""
     h, c = carry
-    gates = jnp.concatenate([x, h], axis=-1) @ params["w"] + params["b"]
+    gates = tapped_matmul(jnp.concatenate([x, h], axis=-1), params["w"], tap) + params["b"]
     i, f, g, o = jnp.split(gates, 4, axis=-1)
     c = jax.nn.sigmoid(f) * c + jax.nn.sigmoid(i) * jnp.tanh(g)
     h = jax.nn.sigmoid(o) * jnp.tanh(c)
@@ -126,18 +143,20 @@ def init_moe(f: ParamFactory, sizes: Sequence[int], num_experts: int) -> list:
             for a, b in zip(sizes[:-1], sizes[1:])]
 
 
-def moe(params: list, x, alpha):
+def moe(params: list, x, alpha, tap=None):
     """Mixture of experts with blended *weights* (MANN-style): every layer uses ``sum_e alpha_e W_e``.
 
     Blending the weights of a linear layer equals blending its per-expert outputs before the
     activation, which is what is computed (no per-sample weight matrices are materialised).  Layers may
     be packed by :func:`pack_moe` (one (d_in, E * d_out) matmul per layer instead of E).
-    x (B, d_in), alpha (B, E) (rows sum to 1) -> (B, d_out).
+    x (B, d_in), alpha (B, E) (rows sum to 1) -> (B, d_out).  ``tap`` (B, E * d_out of the first layer)
+    defers the first packed layer's weight gradient (:func:`tapped_matmul`).
     """
     for i, layer in enumerate(params):
         if "w_packed" in layer:
             e, o = layer["b"].shape
-            y = (x @ layer["w_packed"]).reshape(x.shape[0], e, o) + layer["b"][None]
+            y = tapped_matmul(x, layer["w_packed"], tap if i == 0 else None)
+            y = y.reshape(x.shape[0], e, o) + layer["b"][None]
         else:
             y = jnp.einsum("bi,eio->beo", x, layer["w"]) + layer["b"][None]
         x = jnp.einsum("be,beo->bo", alpha, y)

@@ -125,12 +125,14 @@ def make_init_fn(cfg, stats: dict, num_joints: int):
     return init_fn
 
 
-def generator_loss(params, disc, cfg, stats, batch, key, parents, max_length):
-    """Eq. 10 without the discriminator term.  Returns (loss, (metrics, stitched output))."""
+def generator_loss(params, disc, cfg, stats, batch, key, parents, max_length, taps=None):
+    """Eq. 10 without the discriminator term.  Returns (loss, (metrics, stitched output, recorded matmul
+    inputs)); with ``taps`` (:func:`scvae.make_taps`) the tapped weights get no gradient here (see
+    :func:`scvae.deferred_weight_grads`)."""
     mcfg, lcfg = cfg.model, cfg.loss
     start, target, gt_f, gt_b = split_batch(batch)
     length = batch["length"]
-    res = scvae.rollout(params, mcfg, stats, start, target, length, key, max_length)
+    res = scvae.rollout(params, mcfg, stats, start, target, length, key, max_length, taps)
     if mcfg.bidirectional:   # one FK call for both generators
         both = L.fk_positions(jnp.concatenate([res["fwd"]["q"], res["bwd"]["q"]]),
                               jnp.concatenate([res["fwd"]["r"], res["bwd"]["r"]]), stats, parents)
@@ -158,7 +160,8 @@ def generator_loss(params, disc, cfg, stats, batch, key, parents, max_length):
         lg, _ = L.lsgan_losses(jax.lax.stop_gradient(disc), mcfg, fake, real, length)
         loss = loss + lcfg.alpha_g * lg
     m.update(d, stitch=stitch, phase=ph, g_adv=lg, loss=loss)
-    return loss, (m, res["out"])
+    recs = {g: res[f"rec_{g}"] for g in ("fwd", "bwd") if f"rec_{g}" in res}
+    return loss, (m, res["out"], recs)
 
 
 def make_train_step(cfg, parents: tuple, max_length: int):
@@ -167,9 +170,16 @@ def make_train_step(cfg, parents: tuple, max_length: int):
 
     def train_step(state, batch, key):
         stats = state["stats"]
-        grad_fn = jax.value_and_grad(generator_loss, has_aux=True)
-        (loss, (metrics, out)), g = grad_fn(state["params"], state["disc"], cfg, stats, batch, key, parents,
-                                             max_length)
+        if cfg.train.deferred_wgrad:   # largest weight gradients as one matmul each after the scan
+            taps = scvae.make_taps(state["params"], cfg.model, batch["q"].shape[0], max_length)
+            grad_fn = jax.value_and_grad(generator_loss, argnums=(0, 8), has_aux=True)
+            (loss, (metrics, out, recs)), (g, g_taps) = grad_fn(state["params"], state["disc"], cfg, stats, batch,
+                                                                key, parents, max_length, taps)
+            g = jax.tree.map(jnp.add, g, scvae.deferred_weight_grads(state["params"], recs, g_taps))
+        else:
+            grad_fn = jax.value_and_grad(generator_loss, has_aux=True)
+            (loss, (metrics, out, _)), g = grad_fn(state["params"], state["disc"], cfg, stats, batch, key, parents,
+                                                   max_length)
         upd, opt_g = opt.update(g, state["opt_g"], state["params"])
         params = optax.apply_updates(state["params"], upd)
         disc, opt_d = state["disc"], state["opt_d"]
