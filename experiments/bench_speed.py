@@ -21,6 +21,7 @@ All inputs are real motion from the source (embedded CMU by default); the networ
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import platform
@@ -31,8 +32,6 @@ import time
 import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-TARGETS = {"scvae_train_ratio": 2.0, "scvae_infer_ms": 20.0, "cae_ms_per_frame": 0.3, "interaction_ms": 5.0,
-           "compile_s": 30.0}
 
 
 def _compile_pair(jitted, *args):
@@ -59,12 +58,11 @@ def _train_step_row(variant, win, data, stats, reps, batch=32, n_trans=50):
     from inbetween_jax.configs.scvae import get_config
     from inbetween_jax.models import scvae_train
     from inbetween_jax.profiling import matmul_flops, median_ms, time_calls
-    from inbetween_jax.train.loop import make_step_fn
+    from inbetween_jax.train.loop import make_step_fn, strongly_typed
 
     length = n_trans + 1
     cfg = get_config(variant)
-    cfg = cfg.__class__(model=cfg.model, loss=cfg.loss,
-                        train=cfg.train.__class__(**{**cfg.train.__dict__, "trans_max": n_trans}))
+    cfg = dataclasses.replace(cfg, train=dataclasses.replace(cfg.train, trans_max=n_trans))
     j = data.q.shape[2]
     rng = np.random.default_rng(0)
     idx = rng.integers(0, len(data), batch)
@@ -73,7 +71,7 @@ def _train_step_row(variant, win, data, stats, reps, batch=32, n_trans=50):
     step_fn = scvae_train.make_train_step(cfg, data.parents, length)
     init_fn = scvae_train.make_init_fn(cfg, stats, j)
     jit_step = make_step_fn(step_fn, jax.random.key(1))
-    state = jax.tree.map(lambda x: jnp.asarray(x, jnp.result_type(x)), init_fn(jax.random.key(0)))
+    state = jax.tree.map(strongly_typed, init_fn(jax.random.key(0)))
     dev_batch = jax.tree.map(jnp.asarray, np_batch)
     i0 = np.int32(0)
     out = {"variant": variant, "batch": batch, "n_trans": n_trans,
@@ -123,9 +121,8 @@ def scvae_rows(source, reps, quick, widths=("paper", "cpu")):
         if variant == widths[0]:
             cfg, state = cfg_v, state_v
     out = dict(rows[widths[0]], num_joints=int(data.q.shape[2]), widths=rows)
-    holder = {"s": state}
     # inference: one pair x 10 samples, and 64 pairs x 10 samples
-    params = holder["s"]["params"]
+    params, st = state["params"], state["stats"]
     sample = jax.jit(lambda p, st, s, t, k: scvae.sample(p, cfg.model, st, s, t, length, k, length)["out"])
 
     def keyframes(b):
@@ -135,7 +132,6 @@ def scvae_rows(source, reps, quick, widths=("paper", "cpu")):
                 {"q": pick(win.local_quats, k1), "r": pick(win.root_pos, k1), "c": pick(win.contacts, k1)})
 
     keys = jax.random.split(jax.random.key(2), 10)
-    st = holder["s"]["stats"]
     s1, t1 = keyframes(1)
     out["compile_infer"] = _compile_pair(sample, params, st, s1, t1, keys)
     out["infer_10_gflop"] = matmul_flops(lambda p: sample(p, st, s1, t1, keys), params) / 1e9

@@ -87,23 +87,17 @@ def stack_batches(batches: list) -> tuple:
     return stacked, axes
 
 
-def _strong(x):
-    return x if jax.dtypes.issubdtype(x.dtype, jax.dtypes.prng_key) else jnp.asarray(x, dtype=jnp.result_type(x))
-
-
 def make_vmapped(init_fn, train_step_fn, batch_axes) -> tuple:
     """Jitted ``vinit(keys (N,)) -> states`` and ``vstep(states, batch, train_keys (N,), i) -> (states, metrics)``.
 
     Leaves of ``states`` / ``metrics`` carry a leading seed axis N; seed n's step key is
-    ``fold_in(train_keys[n], i)``.  ``states`` is donated.
+    ``fold_in(train_keys[n], i)`` (the single-run step body of ``run_training``, vmapped).  ``states`` is
+    donated.
     """
-    vinit = jax.jit(lambda keys: jax.tree.map(_strong, jax.vmap(init_fn)(keys)))
-
-    def one(state, batch, train_key, i):
-        new, metrics = train_step_fn(state, batch, jax.random.fold_in(train_key, i))
-        return jax.tree.map(_strong, new), dict(metrics)
-
-    vstep = jax.jit(jax.vmap(one, in_axes=(0, batch_axes, 0, None)), donate_argnums=0)
+    from inbetween_jax.train.loop import step_body, strongly_typed
+    vinit = jax.jit(lambda keys: jax.tree.map(strongly_typed, jax.vmap(init_fn)(keys)))
+    vmapped = jax.vmap(step_body(train_step_fn), in_axes=(0, batch_axes, None, 0))
+    vstep = jax.jit(lambda states, batch, keys, i: vmapped(states, batch, i, keys), donate_argnums=0)
     return vinit, vstep
 
 

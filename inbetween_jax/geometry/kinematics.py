@@ -57,8 +57,8 @@ def forward_kinematics(local_quats, local_pos, parents: Sequence[int]):
         pq, pp = done_q[..., par, :], done_p[..., par, :]
         gp.append(quat_rotate(pq, local_pos[..., idx, :]) + pp)
         gq.append(quat_mul(pq, local_quats[..., idx, :]))
-    inv = slot                                      # level order -> joint order
-    return xp.concatenate(gq, axis=-2)[..., inv, :], xp.concatenate(gp, axis=-2)[..., inv, :]
+    # gathering the level-ordered arrays at ``slot`` puts the joints back in their own order
+    return xp.concatenate(gq, axis=-2)[..., slot, :], xp.concatenate(gp, axis=-2)[..., slot, :]
 
 
 def inverse_kinematics(global_quats, global_pos, parents: Sequence[int]):

@@ -135,21 +135,18 @@ def encode(p: dict, cfg, carry, cur: dict, tgt: dict, tta, gamma, key, stats: di
 
 def decode(p: dict, cfg, carry, z, s_emb, t_emb, cur: dict, stats: dict, taps=None, rec=None):
     """S-CVAE decoder (Fig. 5): LSTM over [z, state emb, target emb] (16 + 256 + 256 = 528 wide), then
-    the phase-gated mixture of experts.  Predicts root velocity, local-quaternion updates and contacts.
+    the phase-gated mixture of experts (``p`` packed by :func:`pack_generator`).  Predicts root velocity, local-quaternion updates and contacts.
     Returns (new_dec_carry, next_frame without phase)."""
     b, j = cur["q"].shape[:2]
+    taps = taps or {}
     x = jnp.concatenate([z, s_emb, t_emb], -1)
-    if "w" in p["lstm"]:          # packed (inside rollout); taps need the packed layers
-        taps = taps or {}
-        new_carry, h = nn.lstm_packed(p["lstm"], carry, x, taps.get("dec_w"))
-    else:
-        new_carry, h = nn.lstm(p["lstm"], carry, x)
+    new_carry, h = nn.lstm_packed(p["lstm"], carry, x, taps.get("dec_w"))
     if cfg.phase_moe:
         alpha = jax.nn.softmax(nn.mlp(p["gating"], jax.lax.stop_gradient(cur["phase"])), -1)
     else:
         alpha = jnp.ones((b, 1), h.dtype)
-    out = nn.moe(p["experts"], h, alpha, (taps or {}).get("moe0"))
-    if rec is not None and taps:
+    out = nn.moe(p["experts"], h, alpha, taps.get("moe0"))
+    if rec is not None:
         rec.update(dec_w=jnp.concatenate([x, carry[0]], -1), moe0=h)
     dq = out[:, :4 * j].reshape(b, j, 4)
     v = out[:, 4 * j:4 * j + 3] * stats["v_std"]
@@ -288,22 +285,23 @@ def make_taps(params: dict, cfg, batch: int, max_length: int) -> dict:
     return out
 
 
-def deferred_weight_grads(params: dict, recs: dict, tap_grads: dict) -> dict:
-    """Weight gradients of the tapped matmuls, ``sum_t x_t^T g_t`` as one matmul each, mapped back to the
-    unpacked parameter layout.  recs: {generator: {name: (S, rows, d_in)}}; tap_grads like :func:`make_taps`.
-    Returns a pytree shaped like ``params`` (zeros where nothing was tapped), to add to the autodiff grads."""
-    out = jax.tree.map(jnp.zeros_like, params)
+def add_deferred_weight_grads(grads: dict, recs: dict, tap_grads: dict) -> dict:
+    """Autodiff ``grads`` (zero at the tapped weights) plus the tapped matmuls' weight gradients,
+    ``sum_t x_t^T g_t`` as one matmul each, mapped back to the unpacked parameter layout.
+    recs: {generator: {name: (S, rows, d_in)}}; tap_grads like :func:`make_taps`.  Only the tapped leaves
+    change; returns a new pytree shaped like ``grads``."""
+    out = jax.tree.map(lambda x: x, grads)     # new containers, same leaves
     for name, rec in recs.items():
         g = tap_grads[name]
         dw = {k: rec[k].reshape(-1, rec[k].shape[-1]).T @ g[k].reshape(-1, g[k].shape[-1]) for k in rec}
-        dec = params[name]["dec"]
-        d_x = dec["lstm"]["wx"].shape[0]
-        e, i, o = dec["experts"][0]["w"].shape
-        gd = out[name]["dec"]
-        gd["lstm"]["wx"], gd["lstm"]["wh"] = dw["dec_w"][:d_x], dw["dec_w"][d_x:]
-        gd["experts"][0]["w"] = jnp.transpose(dw["moe0"].reshape(i, e, o), (1, 0, 2))
+        lstm, expert = out[name]["dec"]["lstm"], out[name]["dec"]["experts"][0]
+        d_x = lstm["wx"].shape[0]
+        e, i, o = expert["w"].shape
+        lstm["wx"], lstm["wh"] = lstm["wx"] + dw["dec_w"][:d_x], lstm["wh"] + dw["dec_w"][d_x:]
+        expert["w"] = expert["w"] + jnp.transpose(dw["moe0"].reshape(i, e, o), (1, 0, 2))
         if "enc_wx" in dw:
-            out[name]["enc"]["lstm"]["wx"], out[name]["enc"]["lstm"]["wh"] = dw["enc_wx"], dw["enc_wh"]
+            enc = out[name]["enc"]["lstm"]
+            enc["wx"], enc["wh"] = enc["wx"] + dw["enc_wx"], enc["wh"] + dw["enc_wh"]
     return out
 
 

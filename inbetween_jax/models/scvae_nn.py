@@ -79,13 +79,17 @@ def lstm_zero_carry(batch_shape, d_hidden: int):
     return (z, z)
 
 
+def lstm_cell(gates, c):
+    """LSTM update from pre-activation gates (..., 4H) in (i, f, g, o) order and cell c (..., H) -> (h, c)."""
+    i, f, g, o = jnp.split(gates, 4, axis=-1)
+    c = jax.nn.sigmoid(f) * c + jax.nn.sigmoid(i) * jnp.tanh(g)
+    return jax.nn.sigmoid(o) * jnp.tanh(c), c
+
+
 def lstm(params: dict, carry, x):
     """One step. carry (h, c) each (B, H); x (B, D). Returns (new_carry, h_new (B, H))."""
     h, c = carry
-    gates = x @ params["wx"] + h @ params["wh"] + params["b"]
-    i, f, g, o = jnp.split(gates, 4, axis=-1)
-    c = jax.nn.sigmoid(f) * c + jax.nn.sigmoid(i) * jnp.tanh(g)
-    h = jax.nn.sigmoid(o) * jnp.tanh(c)
+    h, c = lstm_cell(x @ params["wx"] + h @ params["wh"] + params["b"], c)
     return (h, c), h
 
 
@@ -115,9 +119,7 @@ def lstm_shared_carry(params: dict, carry, x1, x2, taps=None):
     gh = tapped_matmul(h, params["wh"], taps.get("enc_wh")) + params["b"]
     gates = tapped_matmul(jnp.concatenate([x1, x2], axis=0), params["wx"], taps.get("enc_wx")) + \
         jnp.concatenate([gh, gh], axis=0)
-    i, f, g, o = jnp.split(gates, 4, axis=-1)
-    c2 = jax.nn.sigmoid(f) * jnp.concatenate([c, c], axis=0) + jax.nn.sigmoid(i) * jnp.tanh(g)
-    h2 = jax.nn.sigmoid(o) * jnp.tanh(c2)
+    h2, c2 = lstm_cell(gates, jnp.concatenate([c, c], axis=0))
     return (h2[:b], c2[:b]), h2[:b], h2[b:]
 
 
@@ -130,10 +132,7 @@ def lstm_packed(params: dict, carry, x, tap=None):
     """:func:`lstm` with packed weights: one ``[x, h] @ [wx; wh]`` matmul.  Same shapes and values.
     ``tap`` (B, 4H) defers the weight gradient (:func:`tapped_matmul`)."""
     h, c = carry
-    gates = tapped_matmul(jnp.concatenate([x, h], axis=-1), params["w"], tap) + params["b"]
-    i, f, g, o = jnp.split(gates, 4, axis=-1)
-    c = jax.nn.sigmoid(f) * c + jax.nn.sigmoid(i) * jnp.tanh(g)
-    h = jax.nn.sigmoid(o) * jnp.tanh(c)
+    h, c = lstm_cell(tapped_matmul(jnp.concatenate([x, h], axis=-1), params["w"], tap) + params["b"], c)
     return (h, c), h
 
 

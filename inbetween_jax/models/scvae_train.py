@@ -128,7 +128,7 @@ def make_init_fn(cfg, stats: dict, num_joints: int):
 def generator_loss(params, disc, cfg, stats, batch, key, parents, max_length, taps=None):
     """Eq. 10 without the discriminator term.  Returns (loss, (metrics, stitched output, recorded matmul
     inputs)); with ``taps`` (:func:`scvae.make_taps`) the tapped weights get no gradient here (see
-    :func:`scvae.deferred_weight_grads`)."""
+    :func:`scvae.add_deferred_weight_grads`)."""
     mcfg, lcfg = cfg.model, cfg.loss
     start, target, gt_f, gt_b = split_batch(batch)
     length = batch["length"]
@@ -175,7 +175,7 @@ def make_train_step(cfg, parents: tuple, max_length: int):
             grad_fn = jax.value_and_grad(generator_loss, argnums=(0, 8), has_aux=True)
             (loss, (metrics, out, recs)), (g, g_taps) = grad_fn(state["params"], state["disc"], cfg, stats, batch,
                                                                 key, parents, max_length, taps)
-            g = jax.tree.map(jnp.add, g, scvae.deferred_weight_grads(state["params"], recs, g_taps))
+            g = scvae.add_deferred_weight_grads(g, recs, g_taps)
         else:
             grad_fn = jax.value_and_grad(generator_loss, has_aux=True)
             (loss, (metrics, out, _)), g = grad_fn(state["params"], state["disc"], cfg, stats, batch, key, parents,

@@ -34,7 +34,8 @@ from .checkpoint import Checkpointer
 from .config import config_to_dict
 from .logging import MetricLogger, ProgressBar
 
-__all__ = ["enable_compilation_cache", "default_cache_dir", "make_step_fn", "run_training", "step_body"]
+__all__ = ["enable_compilation_cache", "default_cache_dir", "make_step_fn", "run_training", "step_body",
+           "strongly_typed"]
 
 CACHE_ENV = "INBETWEEN_JAX_CACHE"
 
@@ -62,7 +63,7 @@ def enable_compilation_cache(cache_dir: str | None = None, min_compile_time_secs
     return path
 
 
-def _strong(x: Any) -> Any:
+def strongly_typed(x: Any) -> Any:
     """Leaf -> jax.Array without weak type, so init / restored / stepped states share one jit signature."""
     if isinstance(x, jax.Array) and jax.dtypes.issubdtype(x.dtype, jax.dtypes.prng_key):
         return x
@@ -84,7 +85,7 @@ def step_body(train_step_fn: Callable) -> Callable:
     def step(state, batch, i, base):
         key = jax.random.fold_in(base, i)
         new_state, metrics = train_step_fn(state, batch, key)
-        new_state = jax.tree.map(_strong, new_state)
+        new_state = jax.tree.map(strongly_typed, new_state)
         if jax.tree.structure(new_state) != jax.tree.structure(state) or _signature(new_state) != _signature(state):
             raise TypeError("train_step_fn must return a state with the same structure, shapes and dtypes as "
                             f"its input; got {_signature(new_state)} for {_signature(state)}")
@@ -166,14 +167,14 @@ def run_training(init_fn: Callable[[jax.Array], Any],
         start = ckpt.latest_step()
         if start is None:
             start = 0
-            state = jax.tree.map(_strong, init_fn(init_key))
+            state = jax.tree.map(strongly_typed, init_fn(init_key))
         else:
             extra = ckpt.restore_extra(start)
             if extra.get("seed", seed) != seed:
                 warnings.warn(f"resuming {run_dir} (seed {extra.get('seed')}) with seed {seed}: "
                               "the run will not reproduce an uninterrupted one", stacklevel=2)
             state = ckpt.restore(start, jax.eval_shape(init_fn, init_key))
-            state = jax.tree.map(_strong, state)
+            state = jax.tree.map(strongly_typed, state)
 
         logger = MetricLogger(run_dir, resume_step=start)
         bar = ProgressBar(num_steps, initial=start, disable=not progress)
