@@ -351,7 +351,7 @@ def features_to_motion(feats, motion, start: int, key_motion, key_frame: int):
     """
     import dataclasses
     from inbetween_jax.geometry import quat_from_forward_up, quat_normalize
-    from inbetween_jax.models.cae_infer import fit_rotations
+    from inbetween_jax.geometry.fit import fit_rotations
     skel = motion.skeleton
     gq = quat_normalize(quat_from_forward_up(np.asarray(feats[..., 3:], np.float64)))
     par = np.asarray(skel.parents[1:])

@@ -236,11 +236,3 @@ def quat_from_forward_up(fu, eps: float = 1e-8):
     y = y / (xp.linalg.norm(y, axis=-1, keepdims=True) + eps)
     x = xp.cross(y, z)
     return quat_from_matrix(xp.stack([x, y, z], axis=-1))
-
-
-def yaw_quat(q):
-    """Heading-only part of rotations (about +Y), from where they send the +Z axis: (..., 4) -> (..., 4)."""
-    xp = _xp(q)
-    fwd = quat_rotate(q, xp.broadcast_to(xp.asarray([0.0, 0.0, 1.0], q.dtype), q.shape[:-1] + (3,)))
-    ang = xp.arctan2(fwd[..., 0], fwd[..., 2])
-    return quat_from_axis_angle(xp.broadcast_to(xp.asarray([0.0, 1.0, 0.0], q.dtype), q.shape[:-1] + (3,)), ang)

@@ -15,7 +15,8 @@ import dataclasses
 import difflib
 from typing import Any, Mapping, Sequence
 
-__all__ = ["ConfigError", "apply_overrides", "config_to_dict", "parse_value"]
+__all__ = ["ConfigError", "TrainConfig", "apply_overrides", "config_from_dict", "config_to_dict", "describe_config",
+           "parse_value"]
 
 _TRUE = {"true", "t", "yes", "y", "on", "1"}
 _FALSE = {"false", "f", "no", "n", "off", "0"}
@@ -150,3 +151,62 @@ def config_to_dict(config: Any) -> Any:
     if hasattr(config, "item") and getattr(config, "shape", None) == ():
         return config.item()  # numpy / jax scalar
     return str(config)
+
+
+# ----------------------------------------------------------------------------- the one config schema
+@dataclasses.dataclass(frozen=True)
+class TrainConfig:
+    """The ``train`` group, identical for every model (``Config(model, data, loss, train)``).
+
+    The optimiser is Adam (AdamW when ``weight_decay > 0``) behind a global-norm clip when ``grad_clip > 0``;
+    ``lr_schedule`` is ``constant`` or ``cosine`` (decays to ``lr * lr_final`` at ``num_steps``, after
+    ``warmup_steps`` of linear warm-up).  See :func:`inbetween_jax.train.optim.make_optimizer`.
+    """
+    num_steps: int = 1000
+    batch_size: int = 32
+    lr: float = 1e-3
+    b1: float = 0.9
+    b2: float = 0.999
+    weight_decay: float = 0.0
+    grad_clip: float = 0.0          # 0: off
+    lr_schedule: str = "constant"   # constant | cosine
+    lr_final: float = 0.1           # cosine: final lr as a fraction of lr
+    warmup_steps: int = 0
+    log_every: int = 50
+    ckpt_every: int = 500
+    seed: int = 0
+
+
+def config_from_dict(cls: type, data: Mapping | None) -> Any:
+    """Rebuild the (nested) dataclass ``cls`` from :func:`config_to_dict` output (lists become tuples).
+
+    Unknown keys raise :class:`ConfigError` (one line naming the key); missing keys take the defaults.
+    """
+    data = dict(data or {})
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    unknown = sorted(set(data) - set(fields))
+    if unknown:
+        raise ConfigError(f"unknown config key(s) {unknown} for {cls.__name__}")
+    kwargs = {}
+    for name, value in data.items():
+        default = getattr(cls(), name)
+        if dataclasses.is_dataclass(default):
+            kwargs[name] = config_from_dict(type(default), value)
+        elif isinstance(value, list):
+            kwargs[name] = tuple(value)
+        else:
+            kwargs[name] = value
+    return cls(**kwargs)
+
+
+def describe_config(config: Any, prefix: str = "") -> list[str]:
+    """``["model.latent_dim = 16", ...]``: every overridable key with its value, for ``--help`` texts."""
+    lines = []
+    for key in _keys(config):
+        value = config[key] if isinstance(config, Mapping) else getattr(config, key)
+        if _is_node(value):
+            lines += describe_config(value, f"{prefix}{key}.")
+        else:
+            shown = ",".join(str(v) for v in value) if isinstance(value, (tuple, list)) else value
+            lines.append(f"{prefix}{key} = {shown}")
+    return lines

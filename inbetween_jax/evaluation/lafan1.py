@@ -1,4 +1,4 @@
-"""The in-betweening benchmark: official LaFAN1 baseline table and the S-CVAE paper's Table 1 layout.
+"""LaFAN1-style transition protocols: the official LaFAN1 baseline table and the S-CVAE paper's Table 1 layout.
 
 A method is evaluated from its predicted transition frames only. Ground truth comes from benchmark
 windows (:func:`inbetween_jax.data.load_dataset` with ``split="benchmark"``): the last past keyframe is
@@ -114,17 +114,3 @@ def _check_length(windows: MotionWindows, n_past: int, n_trans: int) -> None:
     if n_trans < 1 or n_past < 1 or n_past + n_trans >= windows.window:
         raise ValueError(f"a {n_trans}-frame transition after {n_past} past frames needs windows longer than "
                          f"{n_past + n_trans} frames; these have {windows.window}")
-
-
-def markdown_table(rows: list, columns, title: str = "") -> str:
-    """Rows of dicts -> a GitHub markdown table (method and frames first)."""
-    head = ["frames", "method"] + list(columns)
-    out = ([f"**{title}**", ""] if title else []) + ["| " + " | ".join(head) + " |",
-                                                      "|" + "---|" * len(head)]
-    for r in rows:
-        cells = [str(r["frames"]), r["method"]]
-        for c in columns:
-            v = r.get(c)
-            cells.append("-" if v is None else (f"{v:.4f}" if abs(v) < 10 else f"{v:.2f}"))
-        out.append("| " + " | ".join(cells) + " |")
-    return "\n".join(out)

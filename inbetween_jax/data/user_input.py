@@ -1,0 +1,145 @@
+"""Users' inputs on the command line and from Python: keyframe specs, BVH files, skeleton checks, gap lists.
+
+Every problem a user can cause raises :class:`~inbetween_jax.errors.UserError` (inputs named on the command
+line) or ``ValueError`` (arrays given through the Python API) with one line naming the file or array and the
+problem.  Nothing here writes files.
+"""
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+
+from inbetween_jax.data.bvh import BVHError, read_bvh
+from inbetween_jax.errors import UserError
+
+__all__ = ["split_spec", "read_motion", "read_keyframe", "pick_frame", "check_skeleton", "same_skeleton",
+           "check_unit_quats", "read_json", "finite_or_fail", "parse_gaps"]
+
+
+def split_spec(spec: str, option: str) -> tuple:
+    """``"a.bvh:12"`` -> ``("a.bvh", "12")``; ``"a.bvh"`` -> ``("a.bvh", None)``.
+
+    A spec that exists as a path, or whose part after the last ':' holds a path separator, is not split.
+    """
+    if os.path.exists(spec) or ":" not in spec:
+        return spec, None
+    path, frame = spec.rsplit(":", 1)
+    if "/" in frame or os.sep in frame:
+        return spec, None
+    if not path:
+        raise UserError(f"{option} {spec!r}: missing file name before ':'")
+    return path, frame
+
+
+def read_motion(path: str):
+    """read_bvh with every failure turned into a one-line UserError naming the file."""
+    try:
+        return read_bvh(path)
+    except BVHError as e:
+        raise UserError(str(e)) from None
+    except OSError as e:
+        raise UserError(f"{path}: cannot read ({e.strerror or e})") from None
+
+
+def pick_frame(motion, path: str, frame, default: int, option: str) -> int:
+    """Frame index of a keyframe spec: ``frame`` (str or None -> ``default``; negative default counts from
+    the end), checked against the file's frame count."""
+    n = motion.num_frames
+    if frame is None:
+        return default % n
+    try:
+        f = int(frame)
+    except ValueError:
+        raise UserError(f"{option} {path}:{frame}: frame {frame!r} is not an integer") from None
+    if not 0 <= f < n:
+        raise UserError(f"{option} {path}:{frame}: frame {f} is out of range ({path} has {n} frames: 0..{n - 1})")
+    return f
+
+
+def check_skeleton(skel, path: str, expected=None, num_joints=None, what: str = "the checkpoint") -> None:
+    """Same joints (names, order, parents) as the checkpoint's skeleton ``expected`` (or at least
+    ``num_joints`` joints when the training skeleton is unknown)."""
+    want = expected.num_joints if expected is not None else num_joints
+    if want is not None and skel.num_joints != want:
+        raise UserError(f"{path}: skeleton has {skel.num_joints} joints but {what} was trained on {want}")
+    if expected is None:
+        return
+    for j, (a, b) in enumerate(zip(skel.names, expected.names)):
+        if a != b:
+            raise UserError(f"{path}: joint {j} is {a!r} but {what} expects {b!r} (first differing joint)")
+    for j, (a, b) in enumerate(zip(skel.parents, expected.parents)):
+        if a != b:
+            raise UserError(f"{path}: joint {skel.names[j]!r} has parent {skel.names[a]!r} but {what} "
+                            f"expects {expected.names[b]!r}")
+
+
+def same_skeleton(skel, path: str, ref, ref_path: str) -> None:
+    if not skel.same_topology(ref):
+        check_skeleton(skel, path, ref, what=ref_path)
+
+
+def check_unit_quats(q, name: str, tol: float = 1e-3) -> np.ndarray:
+    """(..., 4) finite unit quaternions as float64, else ValueError naming ``name``."""
+    q = np.asarray(q, np.float64)
+    if q.ndim == 0 or q.shape[-1] != 4:
+        raise ValueError(f"{name}: expected quaternions of shape (..., 4), got {q.shape}")
+    if not np.all(np.isfinite(q)):
+        raise ValueError(f"{name}: quaternions hold NaN or inf")
+    norm = np.linalg.norm(q, axis=-1)
+    bad = np.argwhere(np.abs(norm - 1.0) > tol)
+    if len(bad):
+        i = tuple(int(v) for v in bad[0])
+        raise ValueError(f"{name}: quaternion {i} has norm {norm[i]:.6g}, expected unit quaternions")
+    return q
+
+
+def read_json(path: str, what: str) -> dict:
+    try:
+        with open(path) as f:
+            return json.load(f)
+    except FileNotFoundError:
+        raise UserError(f"{os.path.dirname(path) or '.'}: no {os.path.basename(path)} ({what})") from None
+    except (OSError, ValueError) as e:
+        raise UserError(f"{path}: unreadable run metadata ({e})") from None
+
+
+def finite_or_fail(what: str, *arrays) -> None:
+    if not all(np.all(np.isfinite(a)) for a in arrays):
+        raise UserError(f"{what}: the model produced NaN or inf (is the checkpoint diverged?)")
+
+
+def parse_gaps(text: str, num_frames=None, path: str = "") -> list:
+    """``"100:160,300:420"`` -> ``[(100, 160), (300, 420)]`` (stop exclusive), checked against the clip."""
+    gaps = []
+    for part in text.split(","):
+        bits = part.strip().split(":")
+        try:
+            if len(bits) != 2:
+                raise ValueError
+            a, b = int(bits[0]), int(bits[1])
+        except ValueError:
+            raise UserError(f"--gaps {text!r}: {part.strip()!r} is not START:STOP with integer frames") from None
+        if a < 0 or b <= a:
+            raise UserError(f"--gaps {text!r}: gap {a}:{b} must have 0 <= START < STOP")
+        gaps.append((a, b))
+    if num_frames is not None:
+        for a, b in gaps:
+            if b > num_frames:
+                raise UserError(f"--gaps {text!r}: gap {a}:{b} goes beyond the end of {path} ({num_frames} frames)")
+        mask = np.zeros(num_frames, bool)
+        for a, b in gaps:
+            mask[a:b] = True
+        if mask.all():
+            raise UserError(f"--gaps {text!r}: the gaps cover all {num_frames} frames of {path}; nothing is left "
+                            "to fill from")
+    return sorted(gaps)
+
+
+def read_keyframe(spec: str, option: str, default: int, cache: dict) -> tuple:
+    """``"a.bvh:12"`` -> ``(path, Motion, frame)``; files are read once per ``cache`` (path -> Motion)."""
+    path, frame = split_spec(spec, option)
+    if path not in cache:
+        cache[path] = read_motion(path)
+    return path, cache[path], pick_frame(cache[path], path, frame, default, option)

@@ -1,0 +1,69 @@
+"""Train a registered model into a run folder: the one code path behind ``inbetween train`` and ``make train``.
+
+    run_dir, logged = train_model("cae", preset="tiny", overrides=["train.num_steps=20"], source="embedded")
+
+Loads the model's training data (``source``: a LaFAN1 / BVH folder, ``"embedded"``, or None for ``$LAFAN1_DIR``
+else the embedded CMU set), builds its :class:`~inbetween_jax.models.spec.Training`, writes ``run.json``
+(:mod:`inbetween_jax.train.run`) and runs :func:`inbetween_jax.train.run_training` (resumes from the folder's
+latest checkpoint; same seed, same result).
+"""
+from __future__ import annotations
+
+import os
+import time
+from typing import Callable, Sequence
+
+from inbetween_jax.models import get_spec
+
+__all__ = ["default_run_dir", "build_config", "train_model"]
+
+
+def default_run_dir(model: str) -> str:
+    """``runs/<model>`` (relative to the working folder)."""
+    return os.path.join("runs", model)
+
+
+def build_config(model: str, preset: str | None = None, overrides: Sequence[str] = ()):
+    """The preset's config with ``key=value`` overrides applied (ConfigError on a bad key or value)."""
+    from inbetween_jax.train.config import apply_overrides
+    spec = get_spec(model)
+    preset = preset or spec.default_preset
+    if preset not in spec.presets:
+        raise ValueError(f"unknown preset {preset!r} for {model} (choose {', '.join(spec.presets)})")
+    return apply_overrides(spec.get_config(preset), list(overrides))
+
+
+def train_model(model: str, preset: str | None = None, overrides: Sequence[str] = (), source: str | None = None,
+                run_dir: str | None = None, progress: bool = True, log: Callable[[str], None] | None = print,
+                mesh=None):
+    """Train (or resume) ``model``; returns ``(run_dir, logged rows)``.
+
+    Raises:
+        ValueError (ConfigError, BVHError, RunError) / OSError: one-line problems with the inputs;
+        FloatingPointError: a non-finite loss (names the step).
+    """
+    from inbetween_jax.data import resolve_source
+    from inbetween_jax.train import config_to_dict, run_training
+    from inbetween_jax.train.run import record_training, write_run
+    spec = get_spec(model)
+    preset = preset or spec.default_preset
+    cfg = build_config(model, preset, overrides)
+    run_dir = run_dir or default_run_dir(model)
+    src = resolve_source(source)
+    data = spec.load_data(cfg, src, "train")
+    training = spec.make_training(cfg, data)
+    meta = dict(training.meta)
+    meta["data"] = {"source": src, **meta.get("data", {})}
+    write_run(run_dir, model=model, preset=preset, overrides=list(overrides), config=config_to_dict(cfg), **meta)
+    if log:
+        log(f"{model} ({preset}): {training.describe or 'training'}; {training.num_steps} steps -> {run_dir}")
+    tc = cfg.train
+    t0 = time.time()
+    _, logged = run_training(training.init_fn, training.step_fn, training.batch_fn, cfg, run_dir,
+                             training.num_steps, tc.log_every, tc.ckpt_every, tc.seed, progress=progress, mesh=mesh)
+    wall = time.time() - t0
+    record_training(run_dir, training.num_steps, wall)
+    if log and logged:
+        last = {k: round(v, 5) if isinstance(v, float) else v for k, v in logged[-1].items()}
+        log(f"done in {wall:.0f} s; last logged: {last}")
+    return run_dir, logged

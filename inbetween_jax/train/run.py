@@ -1,0 +1,193 @@
+"""One run-folder format for every model: ``write_run`` / ``load_run`` / ``restore_state``.
+
+A run folder holds::
+
+    run.json          model name, preset + overrides, full config, skeleton, frame rate, normalisation
+                      statistics, data provenance, training history (steps, wall time)
+    checkpoints/<step>/   orbax state written by :func:`inbetween_jax.train.run_training`
+    metrics.csv, metrics.jsonl
+
+``run.json`` is written (atomically) before training starts; resuming with another model, preset or core config
+(anything but ``train.num_steps`` / ``log_every`` / ``ckpt_every``) is refused with a one-line :class:`RunError`.
+Statistics are JSON lists; :func:`load_run` returns them as float32 NumPy arrays.
+"""
+from __future__ import annotations
+
+import dataclasses
+import datetime
+import json
+import os
+from typing import Any
+
+import numpy as np
+
+__all__ = ["RUN_FILE", "FORMAT", "RunError", "Run", "write_run", "load_run", "record_training", "restore_state",
+           "to_json_arrays", "from_json_arrays"]
+
+RUN_FILE = "run.json"
+FORMAT = 1
+_NOT_CORE = ("num_steps", "log_every", "ckpt_every")
+
+
+class RunError(ValueError):
+    """A run folder that cannot be used; ``str(err)`` is one line naming the folder and the problem."""
+
+
+@dataclasses.dataclass
+class Run:
+    """A run folder's metadata (``run.json``) and its latest (or chosen) checkpoint step."""
+    run_dir: str
+    model: str
+    preset: str
+    overrides: list
+    config: dict                     # config_to_dict of the training config
+    skeleton: dict | None            # Skeleton.to_dict() of the training data
+    fps: float | None
+    stats: dict                      # name -> float32 array (normalisation statistics)
+    data: dict                       # provenance: source, files, counts, split
+    extra: dict                      # model-specific metadata
+    history: list
+    step: int | None                 # checkpoint step to restore (None: no checkpoint yet)
+
+    @property
+    def checkpoint_dir(self) -> str:
+        return os.path.join(self.run_dir, "checkpoints")
+
+
+def to_json_arrays(tree: Any) -> Any:
+    """Arrays (NumPy / JAX) inside dicts / lists -> nested lists of Python floats / ints."""
+    if isinstance(tree, dict):
+        return {str(k): to_json_arrays(v) for k, v in tree.items()}
+    if isinstance(tree, (list, tuple)):
+        return [to_json_arrays(v) for v in tree]
+    if hasattr(tree, "shape") and hasattr(tree, "dtype"):
+        return np.asarray(tree).tolist()
+    return tree
+
+
+def from_json_arrays(tree: Any) -> Any:
+    """Inverse of :func:`to_json_arrays` for a dict of statistics: lists -> float32 arrays."""
+    if isinstance(tree, dict):
+        return {k: from_json_arrays(v) for k, v in tree.items()}
+    if isinstance(tree, list):
+        return np.asarray(tree, np.float32)
+    return tree
+
+
+def _core(config: dict) -> dict:
+    c = json.loads(json.dumps(config or {}))
+    for k in _NOT_CORE:
+        c.get("train", {}).pop(k, None)
+    return c
+
+
+def _read(path: str, run_dir: str) -> dict:
+    try:
+        with open(path) as f:
+            meta = json.load(f)
+    except FileNotFoundError:
+        raise RunError(f"{run_dir}: not a run folder (no {RUN_FILE})") from None
+    except (OSError, ValueError) as e:
+        raise RunError(f"{run_dir}: {RUN_FILE} is unreadable ({type(e).__name__}: "
+                       f"{str(e).splitlines()[0] if str(e) else 'empty'})") from None
+    if not isinstance(meta, dict) or "model" not in meta or "config" not in meta:
+        raise RunError(f"{run_dir}: {RUN_FILE} is not a run description (no model / config)")
+    if meta.get("format", 0) > FORMAT:
+        raise RunError(f"{run_dir}: {RUN_FILE} has format {meta['format']}, newer than this version ({FORMAT})")
+    return meta
+
+
+def _atomic_json(path: str, obj: dict) -> None:
+    tmp = path + ".tmp"
+    with open(tmp, "w") as f:
+        json.dump(obj, f, indent=1)
+    os.replace(tmp, path)
+
+
+def write_run(run_dir: str, *, model: str, preset: str, overrides, config: dict, skeleton: dict | None = None,
+              fps: float | None = None, stats: dict | None = None, data: dict | None = None,
+              extra: dict | None = None) -> dict:
+    """Create ``run_dir/run.json`` (or check that an existing one describes the same training); returns it.
+
+    Raises:
+        RunError: the folder holds a run of another model / preset / core config.
+    """
+    os.makedirs(run_dir, exist_ok=True)
+    path = os.path.join(run_dir, RUN_FILE)
+    meta = {"format": FORMAT, "model": model, "preset": preset, "overrides": list(overrides), "config": config,
+            "skeleton": skeleton, "fps": None if fps is None else float(fps), "stats": to_json_arrays(stats or {}),
+            "data": to_json_arrays(data or {}), "extra": to_json_arrays(extra or {}), "history": []}
+    if os.path.exists(path):
+        old = _read(path, run_dir)
+        if old["model"] != model or _core(old["config"]) != _core(config):
+            raise RunError(f"{run_dir} holds a {old['model']} run with another config (preset {old.get('preset')}, "
+                           f"overrides {old.get('overrides')}); pass the same settings to resume or choose another "
+                           "--run-dir")
+        meta["history"] = old.get("history", [])
+        meta["created"] = old.get("created")
+    meta.setdefault("created", None)
+    meta["created"] = meta["created"] or datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+    _atomic_json(path, meta)
+    return meta
+
+
+def record_training(run_dir: str, steps: int, wall_s: float, **info) -> None:
+    """Append ``{"steps", "wall_s", "finished", **info}`` to ``run.json``'s training history."""
+    path = os.path.join(run_dir, RUN_FILE)
+    meta = _read(path, run_dir)
+    meta.setdefault("history", []).append({
+        "steps": int(steps), "wall_s": round(float(wall_s), 1),
+        "finished": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"), **info})
+    _atomic_json(path, meta)
+
+
+def _checkpoint_steps(ckpt_dir: str) -> list[int]:
+    """Finished checkpoint steps (``<step>/`` folders that hold files), without starting orbax."""
+    if not os.path.isdir(ckpt_dir):
+        return []
+    steps = []
+    for name in os.listdir(ckpt_dir):
+        full = os.path.join(ckpt_dir, name)
+        if name.isdigit() and os.path.isdir(full) and os.listdir(full):
+            steps.append(int(name))
+    return sorted(steps)
+
+
+def load_run(run_dir: str, step: int | None = None, need_checkpoint: bool = True) -> Run:
+    """Read a run folder; ``step`` defaults to its latest checkpoint.
+
+    Raises:
+        RunError: one line naming the folder: missing, not a run folder, unreadable ``run.json``, no checkpoint
+            (when ``need_checkpoint``), or the asked ``step`` is not there.
+    """
+    if not os.path.exists(run_dir):
+        raise RunError(f"run folder {run_dir!r} does not exist")
+    if not os.path.isdir(run_dir):
+        raise RunError(f"{run_dir}: not a folder (expected a training run folder)")
+    meta = _read(os.path.join(run_dir, RUN_FILE), run_dir)
+    steps = _checkpoint_steps(os.path.join(run_dir, "checkpoints"))
+    if step is None:
+        step = steps[-1] if steps else None
+    elif step not in steps:
+        raise RunError(f"{run_dir}: no checkpoint at step {step} (found {steps or 'none'})")
+    if step is None and need_checkpoint:
+        raise RunError(f"{run_dir}: no checkpoint found (expected checkpoints/<step>/ written by training)")
+    return Run(run_dir=os.path.abspath(run_dir), model=meta["model"], preset=meta.get("preset", ""),
+               overrides=list(meta.get("overrides", [])), config=meta["config"], skeleton=meta.get("skeleton"),
+               fps=meta.get("fps"), stats=from_json_arrays(meta.get("stats", {})), data=meta.get("data", {}),
+               extra=meta.get("extra", {}), history=meta.get("history", []), step=step)
+
+
+def restore_state(run: Run, target: Any) -> Any:
+    """Restore ``run.step``'s state into the structure of ``target`` (arrays or ``jax.ShapeDtypeStruct``)."""
+    from .checkpoint import Checkpointer
+    if run.step is None:
+        raise RunError(f"{run.run_dir}: no checkpoint to restore")
+    ckpt = Checkpointer(run.checkpoint_dir)
+    try:
+        return ckpt.restore(run.step, target)
+    except (ValueError, KeyError, OSError, TypeError) as e:
+        msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+        raise RunError(f"{run.checkpoint_dir}/{run.step}: cannot restore the checkpoint ({msg[:200]})") from None
+    finally:
+        ckpt.close()
