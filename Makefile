@@ -12,10 +12,11 @@ help:
 	@echo "make install              create .venv and install the package with test extras"
 	@echo "make test                 fast test suite (CI runs exactly this)"
 	@echo "make test-all             include tests marked slow"
-	@echo "make train MODEL=scvae    train scvae|cae|interaction on the embedded data or \$$LAFAN1_DIR (ARGS='key=value ...')"
-	@echo "make bench                baseline + model tables on the embedded data or \$$LAFAN1_DIR, into $(RESULTS)/"
-	@echo ".venv/bin/inbetween --help  in-betweening of your own BVH files with a trained run (infill)"
-	@echo "make demo                 few-step tiny runs of the 3 models + infill with previews on shipped BVH -> results/demo/"
+	@echo "make train MODEL=scvae    inbetween train MODEL ARGS (ARGS='--preset tiny train.num_steps=20 ...')"
+	@echo "make bench                inbetween bench: baseline + model tables into $(RESULTS)/, then the speed section"
+	@echo "                          (NO_SPEED=1 skips it)"
+	@echo ".venv/bin/inbetween --help  train / bench / infill / preview / demo"
+	@echo "make demo                 inbetween demo: tiny runs of every model + infill with previews -> results/demo/"
 	@echo "make infill ARGS='...'    .venv/bin/inbetween infill ARGS (see .venv/bin/inbetween infill --help)"
 	@echo "make preview ARGS='...'   .venv/bin/inbetween preview ARGS (e.g. ARGS='FILE.bvh --gif --out DIR')"
 
@@ -36,13 +37,16 @@ test-all: install
 	$(PY) -m pytest -q -m "slow or not slow"
 
 train: install
-	$(PY) experiments/train.py $(MODEL) $(ARGS)
+	$(VENV)/bin/inbetween train $(MODEL) $(ARGS)
 
 bench: install
-	$(PY) experiments/bench.py --results $(RESULTS) $(ARGS)
+	$(VENV)/bin/inbetween bench --results $(RESULTS) $(ARGS)
+ifeq ($(NO_SPEED),)
+	$(PY) experiments/bench_speed.py --results $(RESULTS)
+endif
 
 demo: install
-	$(PY) experiments/demo.py
+	$(VENV)/bin/inbetween demo
 
 infill: install
 	$(VENV)/bin/inbetween infill $(ARGS)

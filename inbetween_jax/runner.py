@@ -15,7 +15,7 @@ from typing import Callable, Sequence
 
 from inbetween_jax.models import get_spec
 
-__all__ = ["default_run_dir", "build_config", "train_model"]
+__all__ = ["default_run_dir", "build_config", "train_model", "save_initial_state"]
 
 
 def default_run_dir(model: str) -> str:
@@ -58,6 +58,9 @@ def train_model(model: str, preset: str | None = None, overrides: Sequence[str] 
     if log:
         log(f"{model} ({preset}): {training.describe or 'training'}; {training.num_steps} steps -> {run_dir}")
     tc = cfg.train
+    if training.num_steps == 0:
+        save_initial_state(run_dir, training.init_fn, tc.seed)
+        return run_dir, []
     t0 = time.time()
     _, logged = run_training(training.init_fn, training.step_fn, training.batch_fn, cfg, run_dir,
                              training.num_steps, tc.log_every, tc.ckpt_every, tc.seed, progress=progress, mesh=mesh)
@@ -67,3 +70,15 @@ def train_model(model: str, preset: str | None = None, overrides: Sequence[str] 
         last = {k: round(v, 5) if isinstance(v, float) else v for k, v in logged[-1].items()}
         log(f"done in {wall:.0f} s; last logged: {last}")
     return run_dir, logged
+
+
+def save_initial_state(run_dir: str, init_fn: Callable, seed: int) -> None:
+    """Checkpoint 0 of a run: the state ``run_training`` would start from (``train.num_steps=0``), without
+    compiling a training step (used for untrained runs in tests and for inspecting an initialisation)."""
+    import jax
+
+    from inbetween_jax.train.checkpoint import Checkpointer
+    init_key = jax.random.split(jax.random.key(seed), 3)[0]      # as in run_training
+    with Checkpointer(os.path.join(os.path.abspath(run_dir), "checkpoints")) as ckpt:
+        if ckpt.latest_step() is None:
+            ckpt.save(0, init_fn(init_key), extra_json={"step": 0, "seed": seed}, force=True)

@@ -1,11 +1,12 @@
 """Shared test fixtures: where the real mocap lives."""
 import os
-import sys
 
 import pytest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
+ROOT = os.path.dirname(HERE)
+ASSETS = os.path.join(ROOT, "inbetween_jax", "assets", "cmu30")
+CLIP_A, CLIP_B = os.path.join(ASSETS, "02_01.bvh"), os.path.join(ASSETS, "02_02.bvh")   # 86 and 76 frames
 
 # Real LaFAN1 files: $LAFAN1_DIR, else the shared data folder beside the repository.
 _DEFAULT = os.path.join(os.path.dirname(os.path.dirname(HERE)), "shared", "data", "lafan1")
@@ -16,3 +17,21 @@ requires_lafan1 = pytest.mark.skipif(not HAS_LAFAN1, reason="LaFAN1 BVH files no
 
 # Tests write their window caches into a private folder so they never reuse a user's cache.
 os.environ.setdefault("INBETWEEN_JAX_CACHE", os.path.join(HERE, "..", ".cache", "test"))
+
+
+@pytest.fixture(scope="session")
+def cli_runs(tmp_path_factory) -> dict:
+    """``{"scvae", "cae", "interaction"}`` tiny run folders on the embedded data, made once per session with
+    ``inbetween_jax.runner.train_model``: the CAE trains 2 steps; the S-CVAE and interaction runs hold their
+    initial state (``train.num_steps=0``: checkpoint 0, written without compiling a training step, which takes
+    30-60 s on two cores for either).  ``test_cli_on_trained_runs`` (slow) covers trained ones."""
+    from inbetween_jax.runner import train_model
+    from inbetween_jax.train.loop import enable_compilation_cache
+    enable_compilation_cache()
+    base = tmp_path_factory.mktemp("cli_runs")
+    runs = {}
+    for model, steps in (("scvae", 0), ("cae", 2), ("interaction", 0)):
+        runs[model] = str(base / model)
+        train_model(model, "tiny", [f"train.num_steps={steps}", "train.ckpt_every=2", "train.log_every=2"],
+                    "embedded", runs[model], progress=False, log=None)
+    return runs

@@ -1,11 +1,8 @@
 """End-to-end tests of the ``inbetween`` console script on the shipped CMU BVH files, one tiny run per model.
 
-Runs are made once per test session (shared with ``test_hardening.py`` through :func:`cli_runs`): the CAE
-trains 2 steps through ``experiments/train.py``; the S-CVAE and interaction runs hold their initial
-parameters, saved in the run-folder layout their training writes (the S-CVAE with the training data's
-statistics), because compiling either training step takes 30-60 s on two CPU cores --
-``test_cli_on_trained_runs`` (slow) covers run folders written by ``experiments/train.py``.  Every written
-BVH is read back with our reader and with the independent ``bvhio`` package.
+Runs are made once per test session by the ``cli_runs`` fixture (``conftest.py``, shared with
+``test_hardening.py``).  Every written BVH is read back with our reader and with the independent ``bvhio``
+package.
 """
 from __future__ import annotations
 
@@ -22,71 +19,14 @@ from inbetween_jax.data import read_bvh
 from inbetween_jax.geometry import forward_kinematics
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-ASSETS = os.path.join(ROOT, "inbetween_jax", "assets", "cmu30")
-CLIP_A, CLIP_B = os.path.join(ASSETS, "02_01.bvh"), os.path.join(ASSETS, "02_02.bvh")   # 86 and 76 frames
+CLIP_A = os.path.join(ROOT, "inbetween_jax", "assets", "cmu30", "02_01.bvh")   # 86 frames
+CLIP_B = os.path.join(ROOT, "inbetween_jax", "assets", "cmu30", "02_02.bvh")   # 76 frames
 SCVAE_FRAMES, INTER_FRAMES = 8, 12
 
 
-def cli_runs(tmp_path_factory) -> dict:
-    """``{"scvae", "cae", "interaction"}`` run folders under the session's base temp folder (made once)."""
-    base = tmp_path_factory.getbasetemp() / "cli_runs"
-    runs = {m: str(base / m) for m in ("scvae", "cae", "interaction")}
-    if not os.path.exists(base / "done"):
-        from inbetween_jax.train import enable_compilation_cache
-        enable_compilation_cache()         # before the first compilation (model construction compiles too)
-        base.mkdir(exist_ok=True)
-        _scvae_run(runs["scvae"])
-        sys.path.insert(0, os.path.join(ROOT, "experiments"))
-        import train
-        assert train.main(["cae", "--source", "embedded", "--preset", "tiny", "--run-dir", runs["cae"],
-                           "num_steps=2", "ckpt_every=2", "log_every=2"]) == 0
-        _interaction_run(runs["interaction"])
-        (base / "done").write_text("")
-    return runs
-
-
-def _scvae_run(run_dir: str) -> None:
-    """A tiny S-CVAE run folder (run.json + checkpoints/0) holding the initial state of training."""
-    import jax
-
-    from inbetween_jax.configs.scvae import get_config
-    from inbetween_jax.data import load_dataset
-    from inbetween_jax.models import scvae_train
-    from inbetween_jax.train import Checkpointer, config_to_dict
-    cfg = get_config("tiny")
-    windows = load_dataset("embedded", "train")
-    init_fn = scvae_train.make_init_fn(cfg, scvae_train.compute_stats(windows), windows.local_quats.shape[2])
-    os.makedirs(run_dir)
-    with open(os.path.join(run_dir, "run.json"), "w") as f:
-        json.dump({"source": "embedded", "variant": "tiny", "overrides": [], "num_windows": len(windows),
-                   "num_joints": int(windows.local_quats.shape[2]), "config": config_to_dict(cfg)}, f)
-    with Checkpointer(os.path.join(run_dir, "checkpoints")) as ck:
-        ck.save(0, init_fn(jax.random.key(0)), {"step": 0, "seed": 0, "config": config_to_dict(cfg)}, force=True)
-
-
-def _interaction_run(run_dir: str) -> None:
-    """A tiny interaction run folder (interaction_meta.json + checkpoints/0) holding the initial state."""
-    import jax
-
-    from inbetween_jax.configs.interaction import get_config
-    from inbetween_jax.models.interaction_data import _forward_axis
-    from inbetween_jax.models.interaction_train import make_training
-    from inbetween_jax.train import Checkpointer, config_to_dict
-    cfg = get_config("tiny")
-    skel = read_bvh(CLIP_A).skeleton
-    fa = [float(v) for v in _forward_axis(skel)]
-    _, init_fn, _, _ = make_training(cfg, skel.num_joints, fa)
-    os.makedirs(run_dir)
-    with open(os.path.join(run_dir, "interaction_meta.json"), "w") as f:
-        json.dump({"source": "embedded", "variant": "tiny", "overrides": [], "config": config_to_dict(cfg),
-                   "num_joints": skel.num_joints, "forward_axis": fa}, f)
-    with Checkpointer(os.path.join(run_dir, "checkpoints")) as ck:
-        ck.save(0, init_fn(jax.random.key(0)), {"step": 0, "seed": 0, "config": config_to_dict(cfg)}, force=True)
-
-
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory):
-    return cli_runs(tmp_path_factory)
+def runs(cli_runs):
+    return cli_runs
 
 
 def positions(motion) -> np.ndarray:
@@ -239,13 +179,11 @@ def test_console_script_is_installed():
 
 @pytest.mark.slow
 def test_cli_on_trained_runs(tmp_path, capsys):
-    """Run folders written by ``experiments/train.py scvae`` / ``interaction`` (2 steps) work with the CLI."""
-    sys.path.insert(0, os.path.join(ROOT, "experiments"))
-    import train
-    common = ["--source", "embedded", "--variant", "tiny", "train.num_steps=2", "train.ckpt_every=2",
-              "train.log_every=2"]
+    """Run folders written by ``inbetween train scvae`` / ``interaction`` (2 steps) work with the CLI."""
+    common = ["--source", "embedded", "--preset", "tiny", "--no-progress", "train.num_steps=2",
+              "train.ckpt_every=2", "train.log_every=2"]
     for model in ("scvae", "interaction"):
-        assert train.main([model, "--run-dir", str(tmp_path / model)] + common) == 0
+        run_cli(["train", model, "--run-dir", str(tmp_path / model)] + common, capsys)
     run_cli(["infill", "--model", "scvae", "--ckpt", tmp_path / "scvae", "--start", CLIP_A, "--end", CLIP_B,
              "--frames", 10, "--samples", 2, "--out", tmp_path / "out_s"], capsys)
     m = read_bvh(tmp_path / "out_s" / "sample_01.bvh")
@@ -255,3 +193,73 @@ def test_cli_on_trained_runs(tmp_path, capsys):
              "--key-a", f"{CLIP_A}:20", "--key-b", f"{CLIP_B}:20", "--frames", 30, "--out", tmp_path / "out_i"],
             capsys)
     assert read_bvh(tmp_path / "out_i" / "sample_00_B.bvh").num_frames == 32
+
+
+HELP_ARGV = [["--help"], ["train", "--help"], ["bench", "--help"], ["infill", "--help"], ["preview", "--help"],
+             ["demo", "--help"]] + [["train", m, "--help"] for m in ("scvae", "cae", "interaction")]
+
+
+@pytest.mark.parametrize("argv", HELP_ARGV, ids=lambda a: "_".join(a).strip("-"))
+def test_help_for_every_command_and_model(argv, capsys):
+    assert main(argv) == 0
+    out, err = capsys.readouterr()
+    assert "usage: inbetween" in out and not err
+    if len(argv) == 3:                                          # a model's help lists every config key
+        assert "presets: paper, cpu, tiny" in out and "train.num_steps = " in out and "train.lr = " in out
+        assert "model." in out and "data." in out
+
+
+def test_train_help_lists_models(capsys):
+    assert main(["train", "--help"]) == 0
+    out = capsys.readouterr().out
+    assert all(m in out for m in ("scvae", "cae", "interaction")) and "key=value" in out
+
+
+ERROR_ONLY = [
+    ["infill", "--model", "cae", "--ckpt", "no_run", "--bvh", "missing.bvh", "--gaps", "1:2", "--out", "o"],
+    ["preview", "missing.bvh"],
+    ["train", "cae", "model.nope=1"],
+    ["bench", "--source", "no/such/folder"],
+]
+
+
+@pytest.mark.parametrize("argv", ERROR_ONLY, ids=lambda a: a[0])
+def test_input_errors_are_reported_before_jax_is_imported(argv, tmp_path):
+    """An error-only command checks its arguments and files first: JAX is never imported."""
+    code = ("import sys; from inbetween_jax.cli import main; rc = main(sys.argv[1:]); "
+            "print('jax' in sys.modules, rc)")
+    res = subprocess.run([sys.executable, "-c", code] + argv, capture_output=True, text=True, timeout=120,
+                         cwd=tmp_path)
+    assert res.stdout.split() == ["False", "2"], res.stdout + res.stderr
+    assert res.stderr.count("\n") == 1 and res.stderr.startswith("inbetween: error: ")
+
+
+def test_outputs_have_ordinary_modes(runs, tmp_path, capsys):
+    """Output folders and files get the modes ordinary programs give them (0777 / 0666 minus the umask)."""
+    old = os.umask(0o022)
+    try:
+        out = tmp_path / "modes"
+        run_cli(["infill", "--model", "cae", "--ckpt", runs["cae"], "--bvh", CLIP_A, "--gaps", "10:30",
+                 "--out", out, "--preview"], capsys)
+    finally:
+        os.umask(old)
+    assert (os.stat(out).st_mode & 0o777) == 0o755
+    modes = {f: os.stat(out / f).st_mode & 0o777 for f in os.listdir(out)}
+    assert set(modes.values()) == {0o644}, modes
+
+
+def test_train_writes_one_run_format_and_refuses_another_config(tmp_path, capsys):
+    """``inbetween train`` writes run.json (model, preset, config, skeleton, stats, provenance, history) and a
+    checkpoint; resuming the folder with another config is refused in one line."""
+    run = tmp_path / "run"
+    common = ["train", "cae", "--source", "embedded", "--preset", "tiny", "--run-dir", run, "--no-progress",
+              "train.log_every=1", "train.ckpt_every=1"]
+    run_cli(common + ["train.num_steps=1"], capsys)
+    meta = json.loads((run / "run.json").read_text())
+    assert meta["model"] == "cae" and meta["preset"] == "tiny" and meta["config"]["train"]["num_steps"] == 1
+    assert meta["skeleton"]["names"][0] and meta["stats"] and meta["data"]["source"] == "embedded"
+    assert meta["history"][0]["steps"] == 1 and [d for d in os.listdir(run / "checkpoints") if d.isdigit()] == ["1"]
+    run_cli(common + ["train.num_steps=2"], capsys)                  # a longer run resumes the same folder
+    assert sorted(d for d in os.listdir(run / "checkpoints") if d.isdigit()) == ["1", "2"]
+    assert main([str(a) for a in common + ["train.num_steps=3", "train.lr=0.5"]]) == 2
+    assert "holds a cae run with another config" in capsys.readouterr().err

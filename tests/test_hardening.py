@@ -7,7 +7,6 @@ Malformed BVH files are made in ``tmp_path`` from a real shipped clip.
 from __future__ import annotations
 
 import os
-import sys
 
 import numpy as np
 import pytest
@@ -15,7 +14,9 @@ import pytest
 from inbetween_jax.cli import main
 from inbetween_jax.data import read_bvh, write_bvh
 from inbetween_jax.data.skeleton import Skeleton
-from test_cli import CLIP_A, CLIP_B, ROOT, cli_runs
+
+ASSETS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "inbetween_jax", "assets", "cmu30")
+CLIP_A, CLIP_B = os.path.join(ASSETS, "02_01.bvh"), os.path.join(ASSETS, "02_02.bvh")   # 86 and 76 frames
 
 SRC_TEXT = open(CLIP_A).read()
 HEADER, BODY = SRC_TEXT.split("MOTION\n", 1)
@@ -23,8 +24,8 @@ ROWS = BODY.splitlines()[2:]                       # frame lines after "Frames:"
 
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory):
-    return cli_runs(tmp_path_factory)
+def runs(cli_runs):
+    return cli_runs
 
 
 # ----------------------------------------------------------------------------- malformed BVH makers
@@ -116,7 +117,8 @@ CASES = {
     "missing_ckpt_folder": (lambda r, t: (_scvae(r, ckpt=str(t / "no_run")), "no_run"), "does not exist"),
     "ckpt_without_checkpoints": (lambda r, t: (_scvae(r, ckpt=str(_mkdir(t / "empty_run"))), "empty_run"),
                                  "no checkpoint found"),
-    "ckpt_of_other_model": (lambda r, t: (_scvae(r, ckpt=r["interaction"]), "interaction"), "no S-CVAE config"),
+    "ckpt_of_other_model": (lambda r, t: (_scvae(r, ckpt=r["interaction"]), "interaction"),
+                            "holds a run of model 'interaction', not 'scvae'"),
     "option_of_other_model": (lambda r, t: (_scvae(r) + ["--gaps", "1:2"], None), "--gaps is not used"),
     "gaps_reversed": (lambda r, t: (_cae(r, "10:5"), None), "gap 10:5 must have 0 <= START < STOP"),
     "gaps_not_numbers": (lambda r, t: (_cae(r, "a:b"), None), "'a:b' is not START:STOP"),
@@ -206,17 +208,32 @@ def test_python_api_rejects_non_unit_quaternions(runs):
 
 
 def test_training_divergence_is_one_line_with_its_step(tmp_path, capsys):
-    """``experiments/train.py`` reports a NaN loss with its step in one line (exit status 2)."""
-    sys.path.insert(0, os.path.join(ROOT, "experiments"))
-    import train
-    rc = train.main(["cae", "--source", "embedded", "--preset", "tiny", "--run-dir", str(tmp_path / "run"),
-                     "lr=1e30", "num_steps=2", "log_every=1", "ckpt_every=2"])
+    """``inbetween train`` reports a NaN loss with its step in one line (exit status 2)."""
+    rc = main(["train", "cae", "--source", "embedded", "--preset", "tiny", "--run-dir", str(tmp_path / "run"),
+               "--no-progress", "train.lr=1e30", "train.num_steps=2", "train.log_every=1", "train.ckpt_every=2"])
     out, err = capsys.readouterr()
     assert rc == 2
-    lines = [ln for ln in err.replace("\r", "\n").splitlines() if ln.startswith("train: error:")]
+    lines = [ln for ln in err.replace("\r", "\n").splitlines() if ln.startswith("inbetween: error:")]
     assert len(lines) == 1 and "non-finite loss" in lines[0] and "at step 2" in lines[0], err
     assert "Traceback" not in err + out
     assert not os.listdir(tmp_path / "run" / "checkpoints")                   # no diverged state saved
-    assert train.main(["gan"]) == 2
-    assert capsys.readouterr().err.strip() == \
-        "train: error: unknown model 'gan': the first argument must be one of scvae, cae, interaction"
+    assert main(["train", "gan"]) == 2
+    assert capsys.readouterr().err.strip() == "inbetween: error: unknown model 'gan' (choose scvae, cae, interaction)"
+
+
+TRAIN_ERRORS = {   # argv after "train": expected phrase
+    "bad_key": (["cae", "model.chanels=4"], "unknown config key 'model.chanels' (did you mean 'channels'?)"),
+    "bad_value": (["cae", "train.num_steps=ten"], "expected int, got 'ten'"),
+    "not_key_value": (["cae", "num_steps"], "is not of the form key=value"),
+    "bad_preset": (["scvae", "--preset", "huge"], "unknown preset 'huge' for scvae"),
+    "missing_source": (["interaction", "--source", "/nonexistent/folder"], "no such folder"),
+    "bad_processes": (["cae", "--num-processes", "0"], "--num-processes must be >= 1"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(TRAIN_ERRORS))
+def test_train_argument_errors(name, tmp_path, capsys):
+    argv, phrase = TRAIN_ERRORS[name]
+    assert main(["train"] + argv + ["--run-dir", str(tmp_path / "run")]) == 2
+    _expect_one_error(capsys, phrase)
+    assert not (tmp_path / "run").exists()

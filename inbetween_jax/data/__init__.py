@@ -1,6 +1,21 @@
-"""Data layer: BVH I/O, skeletons, windows, features and datasets."""
-from inbetween_jax.data.bvh import BVHError, Motion, read_bvh, write_bvh  # noqa: F401
-from inbetween_jax.data.datasets import load_dataset, load_motions, resolve_source  # noqa: F401
-from inbetween_jax.data.features import Normalizer, foot_contacts, l2p_stats, root_velocity  # noqa: F401
-from inbetween_jax.data.skeleton import Skeleton  # noqa: F401
-from inbetween_jax.data.windows import MotionWindows, canonicalize, windows_from_motions  # noqa: F401
+"""Data layer: BVH I/O, skeletons, windows, features and datasets.
+
+Names are imported on first use (``from inbetween_jax.data import read_bvh`` works as usual), so that importing
+a light submodule such as :mod:`inbetween_jax.data.user_input` does not import JAX.
+"""
+import importlib
+
+_NAMES = {
+    "BVHError": "bvh", "Motion": "bvh", "read_bvh": "bvh", "write_bvh": "bvh",
+    "load_dataset": "datasets", "load_motions": "datasets", "resolve_source": "datasets",
+    "Normalizer": "features", "foot_contacts": "features", "l2p_stats": "features", "root_velocity": "features",
+    "Skeleton": "skeleton",
+    "MotionWindows": "windows", "canonicalize": "windows", "windows_from_motions": "windows",
+}
+__all__ = sorted(_NAMES)
+
+
+def __getattr__(name):
+    if name in _NAMES:
+        return getattr(importlib.import_module(f"inbetween_jax.data.{_NAMES[name]}"), name)
+    raise AttributeError(f"module 'inbetween_jax.data' has no attribute {name!r}")

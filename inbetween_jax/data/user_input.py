@@ -11,7 +11,6 @@ import os
 
 import numpy as np
 
-from inbetween_jax.data.bvh import BVHError, read_bvh
 from inbetween_jax.errors import UserError
 
 __all__ = ["split_spec", "read_motion", "read_keyframe", "pick_frame", "check_skeleton", "same_skeleton",
@@ -35,6 +34,7 @@ def split_spec(spec: str, option: str) -> tuple:
 
 def read_motion(path: str):
     """read_bvh with every failure turned into a one-line UserError naming the file."""
+    from inbetween_jax.data.bvh import BVHError, read_bvh
     try:
         return read_bvh(path)
     except BVHError as e:

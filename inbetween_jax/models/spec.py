@@ -7,10 +7,12 @@ A model is a package ``inbetween_jax/models/<name>/`` with these files (roles), 
     model.py     init_params(key, cfg, ...) -> params (nested dict of arrays); pure apply functions
     losses.py    pure loss functions
     train.py     load_data(cfg, source, split="train") -> data;  make_training(cfg, data) -> Training
-    infer.py     load(run) -> trained model;  INFILL_OPTIONS;  infill(args, run) -> (files, summary)
+    infer.py     load(run) -> trained model;  infill(args, run) -> InfillResult (``inbetween infill``)
     bench.py     run(source, results_dir, run_dir, quick) -> {"markdown": str, "rows": [record, ...], ...}
 
-and one line in :data:`inbetween_jax.models.REGISTRY`.  Nothing here imports a model (or JAX) until a role
+``__init__.py`` holds the docstring and ``INFILL_OPTIONS = {dest: (metavar, help)}``, the ``inbetween infill``
+options the model needs (metavar ``N``: an int; ``FILE...``: a file the CLI checks before loading anything), and
+imports nothing heavy.  Plus one line in :data:`inbetween_jax.models.REGISTRY`.  Nothing here imports a model (or JAX) until a role
 is used, so ``inbetween train MODEL --help`` and argument errors are instant.
 """
 from __future__ import annotations
@@ -94,7 +96,7 @@ class ModelSpec:
 
     @property
     def infill_options(self) -> dict:
-        return dict(self.module("infer").INFILL_OPTIONS)
+        return dict(importlib.import_module(self.package).INFILL_OPTIONS)
 
     def infill(self, args, run):
         return self.module("infer").infill(args, run)

@@ -1,0 +1,92 @@
+"""``inbetween``: the one console script.
+
+    inbetween train MODEL [--preset P] [--source DIR] [--run-dir DIR] [key=value ...]   train / resume a run
+    inbetween bench [--source DIR] [--runs DIR] [--results DIR]                           benchmark tables
+    inbetween infill --model MODEL [--ckpt RUN] ... --out DIR [--preview] [--gif]         in-between BVH files
+    inbetween preview FILE.bvh [--frames a:b] [--gif] [--out DIR]                         draw a BVH file
+    inbetween demo                                                                        tiny end-to-end demo
+
+Arguments and input files are checked before JAX is imported, so mistakes are reported at once.  Problems with
+the inputs print one line ``inbetween: error: ...`` and exit with status 2; a bug prints one line with status 1
+(``--traceback`` shows it); Ctrl-C prints one line and exits with status 130, leaving nothing half-written.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from inbetween_jax.errors import UserError
+
+__all__ = ["main", "entry", "build_parser"]
+
+
+class ArgError(Exception):
+    pass
+
+
+class Parser(argparse.ArgumentParser):
+    def error(self, message):                     # one line instead of usage + message, status 2
+        raise ArgError(f"{self.prog}: {message}")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from inbetween_jax.cli import bench_cmd, demo_cmd, infill_cmd, train_cmd
+    ap = Parser(prog="inbetween", description=__doc__.split("\n\n")[0].split(": ", 1)[1],
+                formatter_class=argparse.RawDescriptionHelpFormatter,
+                epilog="\n".join(__doc__.split("\n\n")[1].splitlines()) + "\n\n'inbetween COMMAND --help' for each.")
+    sub = ap.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
+    for module in (train_cmd, bench_cmd, infill_cmd, demo_cmd):
+        module.add_parser(sub)
+    return ap
+
+
+def _one_line(msg: str) -> str:
+    return "; ".join(s.strip() for s in str(msg).splitlines() if s.strip()) or "unknown problem"
+
+
+def fail(msg: str) -> int:
+    print(f"inbetween: error: {_one_line(msg)}", file=sys.stderr)
+    return 2
+
+
+def main(argv=None) -> int:
+    """Run the ``inbetween`` command line ``argv`` (default ``sys.argv[1:]``); returns the exit status."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except ArgError as e:
+        return fail(str(e))
+    except SystemExit as e:                       # --help
+        return e.code if isinstance(e.code, int) else 0
+    if args.command is None:
+        build_parser().print_help(sys.stderr)
+        return 2
+    traceback = getattr(args, "traceback", False)
+    try:
+        return args.run(args)
+    except (UserError, ValueError, OSError, FloatingPointError) as e:   # BVHError, ConfigError, RunError: ValueError
+        if traceback:
+            raise
+        return fail(str(e))
+    except Exception as e:                        # a bug, not the user's fault: one line unless --traceback
+        if traceback:
+            raise
+        print(f"inbetween: internal error: {type(e).__name__}: {_one_line(str(e))} (rerun with --traceback)",
+              file=sys.stderr)
+        return 1
+
+
+def entry() -> None:
+    """Console-script entry point: prompt Ctrl-C handling, then :func:`main`."""
+    from inbetween_jax.cli import interrupt
+    interrupt.install()
+    try:
+        code = main()
+    except KeyboardInterrupt:
+        print("inbetween: interrupted", file=sys.stderr)
+        code = 130
+    sys.exit(code)
+
+
+if __name__ == "__main__":
+    entry()

@@ -1,0 +1,125 @@
+"""``inbetween bench``: in-betweening tables on LaFAN1 ($LAFAN1_DIR / --source) or the embedded CMU default.
+
+Writes ``<results>/bench.md`` and ``<results>/bench.json`` (with ``rows``: one record per number of bench.md:
+``table``, ``data``, ``model``, ``variant``, ``frames`` or ``gap_s``, ``metric``, ``value``):
+1. the official LaFAN1 baseline table (zero-velocity / interpolation; L2Q, L2P, NPSS at 5/15/30/45, 10 past
+   frames);
+2. the S-CVAE paper's Table 1 layout (APD L2P L2Q ADE SLDE NPSS FootSlide at 10/30/50, one past keyframe);
+3. each registered model's own tables, from the run folder ``<runs>/<model>``; models without a run are listed
+   as skipped.
+L2P statistics: computed from the source's training windows, or read from ``--l2p-stats FILE.npz``
+(``x_mean``, ``x_std`` of shape (1, J*3, 1), e.g. the official LaFAN1 ``train_stats``).
+Each section is announced on stderr while it runs.
+"""
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import sys
+import time
+
+from inbetween_jax.errors import UserError
+from inbetween_jax.models import MODELS, REGISTRY
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("bench", help="benchmark tables: baselines and every trained model",
+                       description=__doc__.split("\n\n")[0].split(": ", 1)[1], epilog=__doc__.split("\n\n", 1)[1],
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--source", default=None,
+                   help="LaFAN1 or BVH folder, or 'embedded' (default: $LAFAN1_DIR, else the embedded CMU clips)")
+    p.add_argument("--results", default="results", help="output folder for bench.md / bench.json (default results)")
+    p.add_argument("--runs", default="runs", help="folder holding one run folder per model (default runs)")
+    p.add_argument("--models", default=",".join(MODELS), help=f"comma-separated models (default {','.join(MODELS)})")
+    p.add_argument("--l2p-stats", default=None, metavar="FILE.npz", help="L2P statistics (x_mean, x_std)")
+    p.add_argument("--quick", action="store_true", help="fewer samples in the model sections")
+    p.add_argument("--traceback", action="store_true", help="show the Python traceback of unexpected errors")
+    p.set_defaults(run=run)
+
+
+def say(msg: str) -> None:
+    print(f"bench: {msg}", file=sys.stderr, flush=True)
+
+
+def load_l2p_stats(source, path):
+    import numpy as np
+
+    from inbetween_jax.data import l2p_stats, load_dataset
+    if path:
+        z = np.load(path)
+        return z["x_mean"], z["x_std"], f"from {os.path.basename(path)}"
+    _, gp = load_dataset(source, "train").global_pose()
+    x_mean, x_std = l2p_stats(gp)
+    return x_mean, x_std, "computed on this source's training windows"
+
+
+def _check(args) -> list:
+    models = [m for m in args.models.split(",") if m]
+    for m in models:
+        if m not in REGISTRY:
+            raise UserError(f"--models: unknown model {m!r} (choose {', '.join(MODELS)})")
+    if args.source not in (None, "embedded") and not os.path.isdir(args.source):
+        raise UserError(f"--source {args.source}: no such folder")
+    if args.l2p_stats and not os.path.isfile(args.l2p_stats):
+        raise UserError(f"--l2p-stats {args.l2p_stats}: no such file")
+    if os.path.exists(args.results) and not os.path.isdir(args.results):
+        raise UserError(f"--results {args.results}: exists and is not a folder")
+    return models
+
+
+def run(args) -> int:
+    models = _check(args)
+    import jax
+
+    from inbetween_jax.data import load_dataset, resolve_source
+    from inbetween_jax.data.datasets import is_lafan1
+    from inbetween_jax.evaluation import (TABLE_COLUMNS, baseline_table1, flat_rows, markdown_table,
+                                          official_baseline_table)
+    source = resolve_source(args.source)
+    t0 = time.time()
+    device = f"{jax.devices()[0].platform} ({jax.devices()[0].device_kind}, {jax.device_count()} device(s))"
+    say(f"data: loading benchmark windows of {source}; running on {device}")
+    bench = load_dataset(source, "benchmark")
+    x_mean, x_std, stats_note = load_l2p_stats(source, args.l2p_stats)
+    data = "lafan1" if is_lafan1(source) else "cmu-embedded" if source == "embedded" else "bvh-folder"
+    label = {"lafan1": "LaFAN1", "cmu-embedded": "embedded CMU default", "bvh-folder": "BVH folder"}[data]
+    header = (f"# In-betweening benchmark\n\nData: {label} (`{source}`), {len(bench)} benchmark windows of "
+              f"{bench.window} frames, {bench.skeleton.num_joints} joints. L2P statistics {stats_note}.\n"
+              f"Device: {device}. Generated {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC.\n")
+    if data == "lafan1" and len(bench) != 2232:
+        header += (f"\nNOTE: {len(bench)} of the official 2,232 benchmark windows are present: these are NOT the "
+                   "official LaFAN1 figures (partial test set).\n")
+    say("section 1: official LaFAN1 protocol, baselines")
+    official = official_baseline_table(bench, x_mean, x_std)
+    say("section 2: S-CVAE Table 1 layout, baselines")
+    table1 = baseline_table1(bench, x_mean, x_std)
+    sections = [header,
+                markdown_table(official, ("L2Q", "L2P", "NPSS"), "Official LaFAN1 protocol: baselines, 10 past frames"),
+                markdown_table(table1, TABLE_COLUMNS, "S-CVAE Table 1 layout (1 past keyframe)")]
+    rows = flat_rows(official, "official", data) + flat_rows(table1, "table1", data)
+    results = {"source": source, "device": device, "windows": len(bench), "official": official, "table1": table1,
+               "models": {}}
+    for i, model in enumerate(models):
+        run_dir = os.path.join(args.runs, model)
+        say(f"section {3 + i}: {model} (runs in {run_dir})")
+        try:
+            out = REGISTRY[model].benchmark(source, args.results, run_dir if os.path.exists(run_dir) else None,
+                                            args.quick)
+        except (OSError, ValueError) as err:   # e.g. a run trained on another skeleton
+            out = {"markdown": f"**{model}**: skipped, {err}", "rows": []}
+        rows += out.get("rows", [])
+        results["models"][model] = {k: v for k, v in out.items() if k not in ("markdown", "rows")}
+        sections.append(out.get("markdown", ""))
+    sections.append(f"Benchmark wall time: {time.time() - t0:.1f} s.")
+    results["rows"] = rows
+    text = "\n\n".join(s for s in sections if s) + "\n"
+    os.makedirs(args.results, exist_ok=True)
+    with open(os.path.join(args.results, "bench.md"), "w") as fh:
+        fh.write(text)
+    with open(os.path.join(args.results, "bench.json"), "w") as fh:
+        json.dump(results, fh, indent=1, default=float)
+    print(text)
+    say(f"wrote {os.path.join(args.results, 'bench.md')} and bench.json ({len(rows)} rows)")
+    return 0

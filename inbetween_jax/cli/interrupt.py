@@ -1,0 +1,80 @@
+"""Prompt, clean Ctrl-C for the command line.
+
+Python runs a SIGINT handler only between bytecodes, so an interrupt that arrives during a long XLA compile or
+a matplotlib render waits until that call returns (over a minute has been seen).  Instead, SIGINT is blocked in
+every thread and a watcher thread waits for it with ``sigwait``: it wakes up as soon as the signal arrives (the
+long calls release the GIL), removes the temporary folders registered with :func:`track`, prints one line and
+ends the process with status 130.  Outputs are only moved into place inside :func:`critical` sections, which an
+interrupt lets finish first, so nothing is left half-written.
+"""
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import signal
+import sys
+import threading
+
+__all__ = ["install", "track", "untrack", "critical"]
+
+_lock = threading.RLock()
+_temp: set[str] = set()
+_state = {"installed": False, "pending": False, "depth": 0, "message": "interrupted"}
+
+
+def _exit_now() -> None:
+    for path in list(_temp):
+        shutil.rmtree(path, ignore_errors=True)
+    try:
+        sys.stderr.write(f"inbetween: {_state['message']}\n")
+        sys.stderr.flush()
+    finally:
+        os._exit(130)
+
+
+def _watch() -> None:
+    while True:
+        signal.sigwait({signal.SIGINT})
+        with _lock:
+            if _state["depth"] > 0:
+                _state["pending"] = True
+                continue
+            _exit_now()
+
+
+def install(message: str = "interrupted") -> None:
+    """Route Ctrl-C to the watcher thread (main thread only; a no-op elsewhere or when already installed)."""
+    _state["message"] = message
+    if _state["installed"] or threading.current_thread() is not threading.main_thread():
+        return
+    if not hasattr(signal, "pthread_sigmask"):
+        return
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    threading.Thread(target=_watch, name="inbetween-sigint", daemon=True).start()
+    _state["installed"] = True
+
+
+def track(path: str) -> None:
+    """Remove ``path`` (a temporary folder) if the process is interrupted."""
+    with _lock:
+        _temp.add(path)
+
+
+def untrack(path: str) -> None:
+    with _lock:
+        _temp.discard(path)
+
+
+@contextlib.contextmanager
+def critical():
+    """A section an interrupt lets finish (moving finished outputs into place); the exit follows it."""
+    with _lock:
+        _state["depth"] += 1
+    try:
+        yield
+    finally:
+        with _lock:
+            _state["depth"] -= 1
+            if _state["depth"] == 0 and _state["pending"]:
+                _exit_now()

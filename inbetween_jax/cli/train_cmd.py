@@ -1,0 +1,95 @@
+"""``inbetween train MODEL [--preset P] [--source DIR] [--run-dir DIR] [--num-processes N] [key=value ...]``.
+
+Trains (or resumes) a registered model into a run folder (``run.json`` + ``checkpoints/``, see
+:mod:`inbetween_jax.train.run`).  ``key=value`` overrides any config field (``train.num_steps=200``,
+``model.latent_dim=8``); ``inbetween train MODEL --help`` lists them all with the preset's values.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from inbetween_jax.models import MODELS, REGISTRY
+
+EPILOG = """examples:
+  inbetween train cae --preset tiny --source embedded train.num_steps=20     # a 20-step smoke run (~1 min)
+  inbetween train scvae                                                       # the CPU preset on the default data
+  inbetween train scvae --preset paper --source $LAFAN1_DIR                   # the paper's sizes and schedule
+Re-running the same command resumes from the run folder's latest checkpoint."""
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("train", help="train or resume a model run", description=__doc__.split("\n\n")[0],
+                       epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter, add_help=False)
+    p.add_argument("-h", "--help", action="store_true", help="show this help (with MODEL: its config keys)")
+    p.add_argument("model", nargs="?", metavar="MODEL", help=" | ".join(MODELS))
+    p.add_argument("--preset", default=None, help="config preset: paper | cpu | tiny (default cpu)")
+    p.add_argument("--source", default=None,
+                   help="training data: a LaFAN1 or BVH folder, or 'embedded' (default: $LAFAN1_DIR, else the "
+                        "embedded CMU clips)")
+    p.add_argument("--run-dir", default=None, help="run folder (default runs/MODEL)")
+    p.add_argument("--num-processes", type=int, default=1,
+                   help="launch N local processes on JAX's distributed runtime (a single-machine check; on a "
+                        "cluster run the command under its launcher instead)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--traceback", action="store_true", help="show the Python traceback of unexpected errors")
+    p.add_argument("overrides", nargs="*", metavar="key=value", help="config overrides")
+    p.set_defaults(run=run, parser=p)
+
+
+def model_help(model: str, preset: str | None) -> str:
+    """The ``--help`` text of one model: summary, presets and every config key with its value."""
+    from inbetween_jax.train.config import describe_config
+    spec = REGISTRY[model]
+    preset = preset or spec.default_preset
+    lines = [f"usage: inbetween train {model} [--preset {'|'.join(spec.presets)}] [--source DIR] [--run-dir DIR] "
+             "[--num-processes N] [key=value ...]", "", f"{model}: {spec.summary}", "",
+             f"presets: {', '.join(spec.presets)} (default {spec.default_preset}); run folder default runs/{model}",
+             "", f"config keys (values of the '{preset}' preset; override with key=value):"]
+    lines += [f"  {line}" for line in describe_config(spec.get_config(preset))]
+    return "\n".join(lines)
+
+
+def _check(args) -> None:
+    from inbetween_jax.errors import UserError
+    if args.model not in REGISTRY:
+        raise UserError(f"unknown model {args.model!r} (choose {', '.join(MODELS)})")
+    spec = REGISTRY[args.model]
+    if args.preset is not None and args.preset not in spec.presets:
+        raise UserError(f"unknown preset {args.preset!r} for {args.model} (choose {', '.join(spec.presets)})")
+    if args.source not in (None, "embedded") and not os.path.isdir(args.source):
+        raise UserError(f"--source {args.source}: no such folder")
+    if args.num_processes < 1:
+        raise UserError(f"--num-processes must be >= 1, got {args.num_processes}")
+    from inbetween_jax.runner import build_config
+    build_config(args.model, args.preset, args.overrides)           # bad keys / values fail here, before JAX
+
+
+def run(args) -> int:
+    if args.help or args.model is None:
+        text = model_help(args.model, args.preset) if args.model in REGISTRY else args.parser.format_help()
+        print(text, file=sys.stdout if args.help else sys.stderr)
+        return 0 if args.help else 2
+    _check(args)
+    if args.num_processes > 1:
+        from inbetween_jax.train import distributed
+        return distributed.launch_local(args.num_processes, _without_num_processes(sys.argv[1:]))
+    from inbetween_jax.runner import train_model
+    train_model(args.model, args.preset, args.overrides, args.source, args.run_dir, progress=not args.no_progress)
+    return 0
+
+
+def _without_num_processes(argv: list) -> list:
+    out, skip = [], False
+    for a in argv:
+        if skip:
+            skip = False
+            continue
+        if a == "--num-processes":
+            skip = True
+            continue
+        if a.startswith("--num-processes="):
+            continue
+        out.append(a)
+    return out
