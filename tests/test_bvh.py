@@ -1,5 +1,6 @@
 """BVH reading / writing on real files, and one clear error per kind of malformed input."""
 import os
+import stat
 
 import numpy as np
 import pytest
@@ -165,6 +166,25 @@ def test_write_refuses_nan_and_leaves_nothing(tmp_path):
     with pytest.raises(ValueError, match="non-finite"):
         write_bvh(out, m)
     assert not out.exists() and not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("mask", [0o022, 0o077, 0o002], ids=lambda m: f"umask{m:03o}")
+def test_written_file_has_the_permissions_open_gives(tmp_path, mask):
+    """A new file gets what ``open(path, "w")`` gives under the umask; an overwritten file keeps its mode."""
+    m = read_bvh(CMU_FILE, 0, 5)
+    old = os.umask(mask)
+    try:
+        with open(tmp_path / "by_open.txt", "w") as fh:
+            fh.write("x")
+        write_bvh(tmp_path / "new.bvh", m)
+    finally:
+        os.umask(old)
+    mode = stat.S_IMODE(os.stat(tmp_path / "new.bvh").st_mode)
+    assert mode == stat.S_IMODE(os.stat(tmp_path / "by_open.txt").st_mode) == 0o666 & ~mask
+    os.chmod(tmp_path / "new.bvh", 0o640)
+    write_bvh(tmp_path / "new.bvh", m)
+    assert stat.S_IMODE(os.stat(tmp_path / "new.bvh").st_mode) == 0o640
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["by_open.txt", "new.bvh"]
 
 
 @pytest.mark.parametrize("source", ["embedded", "lafan1"])

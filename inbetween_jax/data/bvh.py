@@ -1,31 +1,24 @@
 """BVH reading and writing for any skeleton and any channel order.
 
 ``read_bvh`` returns a :class:`Motion` with local quaternions (T, J, 4) and local positions (T, J, 3)
-in float64. Malformed files raise :class:`BVHError` whose message names the file and line.
+in float64. Malformed files raise :class:`BVHError` whose message names the file and line; the variants of the
+format that common exporters write are accepted (see :mod:`inbetween_jax.data.bvh_parse`).
 ``write_bvh`` writes a file that ``read_bvh`` reads back to 1e-4 (Euler angles written with 6 decimals).
 """
 from __future__ import annotations
 
 import dataclasses
 import os
+import stat
 import tempfile
 from typing import Optional
 
 import numpy as np
 
+from inbetween_jax.data.bvh_parse import KNOWN_CHANNELS, BVHError  # noqa: F401  (re-exported)
+from inbetween_jax.data.bvh_parse import parse_hierarchy, parse_motion, read_lines
 from inbetween_jax.data.skeleton import POSITION_CHANNELS, ROTATION_CHANNELS, Skeleton
 from inbetween_jax.geometry.quaternion import quat_fix_sign_np, quat_from_euler, quat_normalize, quat_to_euler
-
-KNOWN_CHANNELS = POSITION_CHANNELS + ROTATION_CHANNELS
-
-
-class BVHError(ValueError):
-    """A BVH file could not be read; the message is ``"<file>:<line>: <problem>"``."""
-
-    def __init__(self, path, line: Optional[int], problem: str):
-        self.path, self.line, self.problem = str(path), line, problem
-        where = f"{path}:{line}" if line is not None else f"{path}"
-        super().__init__(f"{where}: {problem}")
 
 
 @dataclasses.dataclass
@@ -63,165 +56,16 @@ class Motion:
                                    frame_time=self.frame_time * step)
 
 
-def _tokenize(path: str):
-    try:
-        with open(path, "r", encoding="utf-8", errors="strict") as fh:
-            text = fh.read()
-    except FileNotFoundError:
-        raise BVHError(path, None, "file not found") from None
-    except IsADirectoryError:
-        raise BVHError(path, None, "is a directory, not a BVH file") from None
-    except UnicodeDecodeError as e:
-        raise BVHError(path, None, f"not a text file ({e.reason} at byte {e.start})") from None
-    return text.splitlines()
-
-
-def _parse_hierarchy(path, lines):
-    """Parse HIERARCHY up to MOTION. Returns (Skeleton, index of the line after MOTION)."""
-    names, parents, offsets, channels, end_sites = [], [], [], [], []
-    stack = []  # joint index or "end"
-    pending = None  # joint or end site waiting for "{"
-    i = 0
-    while i < len(lines) and not lines[i].strip():
-        i += 1
-    if i >= len(lines) or lines[i].strip() != "HIERARCHY":
-        raise BVHError(path, i + 1 if i < len(lines) else None, "missing HIERARCHY header")
-    i += 1
-    while i < len(lines):
-        lineno, words = i + 1, lines[i].split()
-        i += 1
-        if not words:
-            continue
-        key = words[0]
-        if key in ("ROOT", "JOINT"):
-            if len(words) < 2:
-                raise BVHError(path, lineno, f"{key} without a name")
-            if key == "ROOT" and names:
-                raise BVHError(path, lineno, "more than one ROOT is not supported")
-            if key == "JOINT" and (not stack or stack[-1] == "end"):
-                raise BVHError(path, lineno, "JOINT outside a joint block")
-            names.append(" ".join(words[1:]))
-            parents.append(stack[-1] if stack else -1)
-            offsets.append(None)
-            channels.append(())
-            pending = len(names) - 1
-        elif key == "End" and len(words) > 1 and words[1] == "Site":
-            if not stack or stack[-1] == "end":
-                raise BVHError(path, lineno, "End Site outside a joint block")
-            end_sites.append([stack[-1], None])
-            pending = "end"
-        elif key == "{":
-            if pending is None:
-                raise BVHError(path, lineno, "unexpected '{'")
-            stack.append(pending)
-            pending = None
-        elif key == "}":
-            if not stack:
-                raise BVHError(path, lineno, "unbalanced '}'")
-            stack.pop()
-        elif key == "OFFSET":
-            if not stack:
-                raise BVHError(path, lineno, "OFFSET outside a joint block")
-            try:
-                vals = np.array([float(w) for w in words[1:]], np.float64)
-            except ValueError:
-                raise BVHError(path, lineno, f"non-numeric OFFSET {' '.join(words[1:])!r}") from None
-            if vals.shape != (3,) or not np.all(np.isfinite(vals)):
-                raise BVHError(path, lineno, f"OFFSET needs 3 finite numbers, got {' '.join(words[1:])!r}")
-            if stack[-1] == "end":
-                end_sites[-1][1] = vals
-            else:
-                offsets[stack[-1]] = vals
-        elif key == "CHANNELS":
-            if not stack or stack[-1] == "end":
-                raise BVHError(path, lineno, "CHANNELS outside a joint block")
-            try:
-                n = int(words[1])
-            except (IndexError, ValueError):
-                raise BVHError(path, lineno, "CHANNELS needs a count") from None
-            chans = tuple(words[2:])
-            if len(chans) != n:
-                raise BVHError(path, lineno, f"CHANNELS says {n} but lists {len(chans)} names")
-            for c in chans:
-                if c not in KNOWN_CHANNELS:
-                    raise BVHError(path, lineno, f"unknown channel name {c!r} (expected one of {KNOWN_CHANNELS})")
-            rot = [c for c in chans if c in ROTATION_CHANNELS]
-            if len(rot) not in (0, 3) or len(set(rot)) != len(rot):
-                raise BVHError(path, lineno, f"rotation channels must be three distinct axes, got {rot}")
-            channels[stack[-1]] = chans
-        elif key == "MOTION":
-            if stack:
-                raise BVHError(path, lineno, "MOTION before every '{' was closed")
-            break
-        else:
-            raise BVHError(path, lineno, f"unexpected {key!r} in HIERARCHY")
-    else:
-        raise BVHError(path, len(lines), "file ends before the MOTION section")
-    if not names:
-        raise BVHError(path, None, "no ROOT joint")
-    for j, o in enumerate(offsets):
-        if o is None:
-            raise BVHError(path, None, f"joint {names[j]!r} has no OFFSET")
-    dup = next((n for k, n in enumerate(names) if n in names[:k]), None)
-    if dup is not None:
-        raise BVHError(path, None, f"joint name {dup!r} appears more than once")
-    skel = Skeleton(tuple(names), tuple(parents), np.stack(offsets), tuple(channels),
-                    tuple((p, o if o is not None else np.zeros(3)) for p, o in end_sites))
-    return skel, i
-
-
-def _parse_motion(path, lines, start_line, skel):
-    """Parse Frames / Frame Time / data. Returns (values (T, C) float64, frame_time)."""
-    i = start_line
-    header = {}
-    for key in ("Frames:", "Frame Time:"):
-        while i < len(lines) and not lines[i].strip():
-            i += 1
-        if i >= len(lines) or not lines[i].strip().startswith(key):
-            raise BVHError(path, i + 1 if i < len(lines) else len(lines), f"expected '{key}' line")
-        try:
-            header[key] = float(lines[i].strip()[len(key):])
-        except ValueError:
-            raise BVHError(path, i + 1, f"bad value in {lines[i].strip()!r}") from None
-        i += 1
-    frames, frame_time = header["Frames:"], header["Frame Time:"]
-    if not np.isfinite(frames) or frames != int(frames) or frames < 1:
-        raise BVHError(path, start_line + 1, f"Frames must be a positive integer, got {lines[start_line].strip()!r}")
-    if not np.isfinite(frame_time) or frame_time <= 0:
-        raise BVHError(path, start_line + 2, f"Frame Time must be positive, got {frame_time}")
-    frames, nchan = int(frames), skel.num_channels
-    data = [(k + 1, ln) for k, ln in enumerate(lines[i:], start=i) if ln.strip()]
-    if len(data) < frames:
-        raise BVHError(path, len(lines), f"truncated MOTION block: header says {frames} frames, found {len(data)}")
-    if len(data) > frames:
-        raise BVHError(path, data[frames][0], f"more frame lines than the {frames} in the header")
-    rows = [ln.split() for _, ln in data]
-    for (lineno, _), r in zip(data, rows):
-        if len(r) != nchan:
-            raise BVHError(path, lineno, f"frame has {len(r)} values, the hierarchy declares {nchan} channels")
-    try:
-        values = np.array(rows, dtype=np.float64)
-    except ValueError:
-        for (lineno, _), r in zip(data, rows):
-            for col, w in enumerate(r):
-                try:
-                    float(w)
-                except ValueError:
-                    raise BVHError(path, lineno, f"non-numeric value {w!r} in column {col + 1}") from None
-        raise
-    bad = ~np.isfinite(values)
-    if bad.any():
-        row, col = np.argwhere(bad)[0]
-        raise BVHError(path, data[row][0], f"non-finite value {rows[row][col]!r} in column {col + 1}")
-    return values, frame_time
-
-
 def read_bvh(path, start: Optional[int] = None, end: Optional[int] = None) -> Motion:
-    """Read a BVH file (any skeleton, any channel order) into a :class:`Motion` (frames [start, end))."""
+    """Read a BVH file (any skeleton, any channel order) into a :class:`Motion` (frames [start, end)).
+
+    Frames beyond the count in the ``Frames:`` line are ignored; fewer frames than it declares raise
+    :class:`BVHError`. The exporter variants accepted are listed in :mod:`inbetween_jax.data.bvh_parse`.
+    """
     path = os.fspath(path)
-    lines = _tokenize(path)
-    skel, motion_line = _parse_hierarchy(path, lines)
-    values, frame_time = _parse_motion(path, lines, motion_line, skel)
+    lines = read_lines(path)
+    skel, motion_line = parse_hierarchy(path, lines)
+    values, frame_time = parse_motion(path, lines, motion_line, skel.num_channels)
     values = values[start:end]
     if values.shape[0] == 0:
         raise BVHError(path, None, f"frame range [{start}, {end}) selects no frames")
@@ -263,6 +107,28 @@ def motion_to_channels(motion: Motion) -> np.ndarray:
     return np.stack(cols, axis=1) if cols else np.zeros((motion.num_frames, 0))
 
 
+def _umask() -> int:
+    """The process umask, read without changing it where the platform allows."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def _mode_for(path: str) -> int:
+    """Permission bits ``open(path, "w")`` would leave: the existing file's, else 0o666 less the umask."""
+    try:
+        return stat.S_IMODE(os.stat(path).st_mode)
+    except OSError:
+        return 0o666 & ~_umask()
+
+
 def write_bvh(path, motion: Motion, decimals: int = 6) -> None:
     """Write ``motion`` as BVH on its skeleton. Atomic: a temporary file is renamed into place.
 
@@ -301,7 +167,8 @@ def write_bvh(path, motion: Motion, decimals: int = 6) -> None:
     os.makedirs(directory, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=directory, suffix=".bvh.tmp")
     try:
-        with os.fdopen(fd, "w") as fh:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            os.fchmod(fh.fileno(), _mode_for(path))  # mkstemp makes 0600; give the mode open() would
             fh.write("\n".join(out) + "\n" + body + "\n")
         os.replace(tmp, path)
     except BaseException:
