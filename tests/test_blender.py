@@ -35,15 +35,15 @@ SALSA = next((p for p in (os.path.join(d, "cmu_pairs", "60_12_scaled.bvh")
 TOL = 1e-3                     # in the file's unit
 
 
-def _cli_infill_files(tmp_path_factory, out) -> dict:
+def _cli_infill_files(request, out) -> dict:
     """BVH files written by the ``inbetween infill`` command, on the tiny run folders of the CLI tests.
 
-    The runs come from ``test_cli.cli_runs`` (made once per test session, shared with the CLI tests); making
+    The runs come from the ``cli_runs`` fixture (made once per test session, shared with the CLI tests); making
     them compiles three models, so this is called lazily, by the slow cases only.
     """
     from inbetween_jax.cli import main
-    from test_cli import CLIP_A, CLIP_B, cli_runs
-    runs = cli_runs(tmp_path_factory)
+    from conftest import CLIP_A, CLIP_B
+    runs = request.getfixturevalue("cli_runs")
     cae_out, scvae_out = out / "cli_cae", out / "cli_scvae"
     assert main(["infill", "--model", "cae", "--ckpt", runs["cae"], "--bvh", CLIP_A, "--gaps", "10:30",
                  "--out", str(cae_out)]) == 0
@@ -53,7 +53,7 @@ def _cli_infill_files(tmp_path_factory, out) -> dict:
 
 
 @pytest.fixture(scope="module")
-def written_bvh_files(tmp_path_factory) -> dict:
+def written_bvh_files(tmp_path_factory, request) -> dict:
     """``{case: path, or a function returning it}`` of the BVH files to check; a case is absent when its
     data are missing.  The CLI's files are functions: they are made on first use, by the slow cases only."""
     out = tmp_path_factory.mktemp("blender_bvh")
@@ -74,7 +74,7 @@ def written_bvh_files(tmp_path_factory) -> dict:
 
     def cli_files():
         if not made:
-            made.update(_cli_infill_files(tmp_path_factory, out))
+            made.update(_cli_infill_files(request, out))
         return made
     files.update({k: (lambda k=k: cli_files()[k]) for k in ("cli_cae", "cli_scvae")})
     return files
