@@ -6,11 +6,14 @@ Every writer validates its inputs first (``ValueError`` with a one-line message,
 creates the output folder if needed, writes to a temporary file beside ``path`` and renames it into
 place, and returns ``path``.  :func:`preview_writers` / :func:`bvh_previews` (used by the ``inbetween``
 command) check a motion's inputs up front and return such writers for files named after the motion.
+The work is bounded whatever the length of the motion: a contact sheet draws at most ``max_poses``
+poses and a GIF has at most ``max_frames`` frames at most ``max_fps`` frames per second (see
+:func:`sheet_frames` and :func:`gif_frames`).  Writers take an optional ``progress(done, total)``
+callback, called as the drawing advances.
 """
 from __future__ import annotations
 
 import os
-import tempfile
 from typing import Mapping, Optional, Sequence
 
 import matplotlib
@@ -18,7 +21,11 @@ import matplotlib
 matplotlib.use("Agg")  # no screen: never pick an interactive backend from the environment
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
+from matplotlib.collections import LineCollection  # noqa: E402
+
+from inbetween_jax.viz_frames import (MAX_GIF_FPS, MAX_GIF_FRAMES, MAX_POSES, GifPlan,  # noqa: E402,F401
+                                      GifPalette, Progress, SheetPlan, canvas_rgb, gif_frames, save_atomic,
+                                      sheet_frames, write_gif)
 
 KEY_COLOR = "#000000"        # keyframes
 GENERATED_COLOR = "#999999"  # generated (in-between) frames
@@ -103,29 +110,10 @@ def _bones(parents) -> list:
     return [(p, j) for j, p in enumerate(parents) if p >= 0]
 
 
-# ------------------------------------------------------------------------------------- writing
-def _save_atomic(path, suffix: str, save) -> str:
-    """Call ``save(tmp_path)`` on a temporary file beside ``path``, then rename it to ``path``."""
-    path = os.fspath(path)
-    directory = os.path.dirname(os.path.abspath(path))
-    os.makedirs(directory, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=directory, prefix=f".{os.path.basename(path)}.", suffix=suffix)
-    os.close(fd)
-    try:
-        os.chmod(tmp, 0o644)  # mkstemp makes 0600; a preview is an ordinary file
-        save(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
-    return path
-
-
 # ---------------------------------------------------------------------------------- public API
 def contact_sheet(positions, parents, path, every: int = 5, keyframes: Sequence[int] = (),
                   title: Optional[str] = None, generated=None, *, height: float = 2.5, dpi: int = 100,
-                  first_frame: int = 0) -> str:
+                  first_frame: int = 0, max_poses: int = MAX_POSES, progress: Progress = None) -> str:
     """Stick figures of every ``every``-th frame (plus every keyframe) side by side, as a PNG.
 
     positions: (T, J, 3) global positions (cm, Y up); parents: (J,) parent array.
@@ -133,7 +121,9 @@ def contact_sheet(positions, parents, path, every: int = 5, keyframes: Sequence[
     other frames are drawn blue. The view is from the side with the overall motion going left to
     right; poses keep their place along the path unless they would overlap, then they are spread
     evenly. ``height`` (inches) and ``dpi`` set the image size; ``first_frame`` only shifts the
-    frame numbers printed under the poses. Returns ``path``.
+    frame numbers printed under the poses. At most ``max_poses`` poses are drawn: when ``every``
+    (or the keyframes) would give more, the step grows (:func:`sheet_frames`) and the title says so.
+    ``progress(done, total)`` is called after each pose and after saving. Returns ``path``.
     """
     pos, par = _check_positions(positions, parents)
     t = pos.shape[0]
@@ -141,7 +131,9 @@ def contact_sheet(positions, parents, path, every: int = 5, keyframes: Sequence[
         raise ValueError(f"every must be >= 1, got {every}")
     keys = _check_keyframes(keyframes, t)
     gen = np.zeros(t, bool) if generated is None else _check_generated(generated, t)
-    frames = sorted(set(range(0, t, int(every))) | set(keys))
+    plan = sheet_frames(t, int(every), keys, max_poses)
+    frames, keys = plan.frames, set(plan.keyframes)
+    title = " ".join(x for x in (title, plan.note) if x) or None
 
     u = _heading(pos[:, 0, [0, 2]])
     xy = _side_view(pos[frames], u)                          # (F, J, 2)
@@ -156,6 +148,8 @@ def contact_sheet(positions, parents, path, every: int = 5, keyframes: Sequence[
     xmin, xmax = xy[..., 0].min() - 0.1 * width, xy[..., 0].max() + 0.1 * width
     ymin, ymax = min(0.0, xy[..., 1].min()) - 16.0, xy[..., 1].max() + 10.0  # room for frame numbers
     fig_w = min(max(height * (xmax - xmin) / (ymax - ymin), 2.0), 60.0)
+    bones = np.array(_bones(par)).reshape(-1, 2)                # (B, 2) parent, child
+    total = len(frames) + 1
     style = {"lines.antialiased": False, "text.antialiased": False, "patch.antialiased": False}
     with plt.rc_context(style):
         fig = plt.figure(figsize=(fig_w, height + (0.3 if title else 0.0)), dpi=dpi, facecolor="white")
@@ -169,31 +163,38 @@ def contact_sheet(positions, parents, path, every: int = 5, keyframes: Sequence[
             for f, (frame, pose) in enumerate(zip(frames, xy)):
                 is_key = frame in keys
                 color = KEY_COLOR if is_key else GENERATED_COLOR if gen[frame] else OTHER_COLOR
-                for p, j in _bones(par):
-                    ax.plot(pose[[p, j], 0], pose[[p, j], 1], color=color, lw=2.0 if is_key else 1.5,
-                            solid_capstyle="round", zorder=2 if is_key else 1)
+                ax.add_collection(LineCollection(pose[bones], colors=color, linewidths=2.0 if is_key else 1.5,
+                                                 capstyle="round", antialiaseds=False, zorder=2 if is_key else 1),
+                                  autolim=False)
                 if is_key:
                     ax.text(root_x[f], ymin + 1.0, str(frame + first_frame), ha="center", va="bottom",
                             fontsize=7, color=KEY_COLOR)
+                if progress is not None:
+                    progress(f + 1, total)
             if title:
                 fig.suptitle(title, fontsize=9, y=0.99, va="top")
-            _save_atomic(path, ".png", lambda tmp: fig.savefig(tmp, format="png", dpi=dpi,
-                                                               facecolor="white"))
+            save_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=dpi, facecolor="white"), ".png")
         finally:
             plt.close(fig)
+    if progress is not None:
+        progress(total, total)
     return os.fspath(path)
 
 
 def animate(positions, parents, path, fps: float = 30, keyframes: Sequence[int] = (),
             positions_b=None, parents_b=None, *, stride: int = 1, view: str = "side", size: float = 3.0,
-            dpi: int = 80, first_frame: int = 0) -> str:
+            dpi: int = 80, first_frame: int = 0, max_fps: float = MAX_GIF_FPS,
+            max_frames: int = MAX_GIF_FRAMES, progress: Progress = None) -> str:
     """Animated GIF of one character, or two (interaction) when ``positions_b`` is given.
 
-    positions: (T, J, 3); positions_b: optional (T, Jb, 3) on ``parents_b`` (default: ``parents``).
-    Frames 0, stride, 2*stride, ... are drawn, so the GIF has ``len(range(0, T, stride))`` frames
-    played at ``fps / stride``. Keyframes are drawn black and thicker, with "key" in the caption.
+    positions: (T, J, 3) sampled at ``fps``; positions_b: optional (T, Jb, 3) on ``parents_b``
+    (default: ``parents``). Frames 0, s, 2s, ... are drawn, ``s`` being the smallest integer stride
+    >= ``stride`` that plays at most ``max_fps`` frames per second and gives at most ``max_frames``
+    frames (:func:`gif_frames`); the frame delays (whole centiseconds) add up to the motion's duration
+    ``T / fps``. Keyframes are drawn black and thicker, with "key" in the caption.
     view: ``"side"`` (2-D, horizontal axis along the motion, or across the two characters) or
-    ``"3d"``. ``size`` (inches, square) and ``dpi`` set the image size. Returns ``path``.
+    ``"3d"``. ``size`` (inches, square) and ``dpi`` set the image size.
+    ``progress(done, total)`` is called after each frame and after saving. Returns ``path``.
     """
     pos, par = _check_positions(positions, parents)
     t = pos.shape[0]
@@ -208,7 +209,7 @@ def animate(positions, parents, path, fps: float = 30, keyframes: Sequence[int] 
     if int(stride) < 1 or not fps > 0:
         raise ValueError(f"stride must be >= 1 and fps > 0, got stride={stride}, fps={fps}")
     keys = set(_check_keyframes(keyframes, t))
-    frames = list(range(0, t, int(stride)))
+    plan = gif_frames(t, float(fps), int(stride), max_fps=max_fps, max_frames=max_frames)
 
     allpos = np.concatenate([c[0] for c in chars], axis=1)   # (T, J+Jb, 3)
     if len(chars) == 2:
@@ -240,28 +241,49 @@ def animate(positions, parents, path, fps: float = 30, keyframes: Sequence[int] 
             ax.set_xticks([])
             ax.set_yticks([])
             data = [_side_view(c[0], u) for c in chars]
-        lines = [[ax.plot([], [], lw=2.0, color=col)[0] for _ in _bones(p)] for (_, p, col) in chars]
-        caption = ax.set_title("", fontsize=9)
-
-        def draw(k):
-            f = frames[k]
+        # The figure is drawn once; each frame then redraws only the bones and the caption on a copy of
+        # that background (blitting): a short call per frame, so Ctrl-C stops between frames.
+        if view == "3d":
+            artists = [[ax.plot([], [], [], lw=2.0, color=col, animated=True)[0] for _ in _bones(p)]
+                       for (_, p, col) in chars]
+        else:
+            artists = [ax.add_collection(LineCollection([], colors=col, linewidths=2.0, animated=True),
+                                         autolim=False) for (_, _, col) in chars]
+        caption = ax.set_title("", fontsize=9, animated=True)
+        fig.canvas.draw()
+        background = fig.canvas.copy_from_bbox(fig.bbox)
+        note = f" [{plan.note}]" if plan.note else ""
+        images, total, palette = [], len(plan.frames) + 1, None
+        for k, f in enumerate(plan.frames):
             key = f in keys
-            for (_, p, col), d, ls in zip(chars, data, lines):
-                for line, (a, b) in zip(ls, _bones(p)):
-                    if view == "3d":
+            fig.canvas.restore_region(background)
+            for (_, p, col), d, art in zip(chars, data, artists):
+                bones = np.array(_bones(p)).reshape(-1, 2)
+                color, width = (KEY_COLOR, 3.0) if key else (col, 2.0)
+                if view == "3d":
+                    for line, (a, b) in zip(art, bones):
                         line.set_data_3d(d[f, [a, b], 0], d[f, [a, b], 1], d[f, [a, b], 2])
-                    else:
-                        line.set_data(d[f, [a, b], 0], d[f, [a, b], 1])
-                    line.set_color(KEY_COLOR if key else col)
-                    line.set_linewidth(3.0 if key else 2.0)
-            caption.set_text(f"frame {f + first_frame}" + (" (key)" if key else ""))
-            return [ln for ls in lines for ln in ls] + [caption]
-
-        anim = FuncAnimation(fig, draw, frames=len(frames), blit=False, repeat=False)
-        writer = PillowWriter(fps=float(fps) / int(stride))
-        _save_atomic(path, ".gif", lambda tmp: anim.save(tmp, writer=writer, dpi=dpi))
+                        line.set_color(color)
+                        line.set_linewidth(width)
+                        ax.draw_artist(line)
+                else:
+                    art.set_segments(d[f][bones])
+                    art.set_color(color)
+                    art.set_linewidth(width)
+                    ax.draw_artist(art)
+            caption.set_text(f"frame {f + first_frame}" + (" (key)" if key else "") + note)
+            ax.draw_artist(caption)
+            rgb = canvas_rgb(fig)
+            if palette is None:   # one palette for all frames, from the first (colours drawn later kept exactly)
+                palette = GifPalette(rgb, ("#ffffff", KEY_COLOR, FLOOR_COLOR, OTHER_COLOR, OTHER_COLOR_B))
+            images.append(palette.apply(rgb))
+            if progress is not None:
+                progress(k + 1, total)
     finally:
         plt.close(fig)
+    write_gif(path, images, plan.durations_ms)
+    if progress is not None:
+        progress(total, total)
     return os.fspath(path)
 
 
@@ -293,7 +315,7 @@ def plot_error_over_time(times, mean, lo, hi, path, label: str, baseline: Option
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, frameon=False)
         fig.tight_layout()
-        _save_atomic(path, ".png", lambda tmp: fig.savefig(tmp, format="png", dpi=dpi, facecolor="white"))
+        save_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=dpi, facecolor="white"), ".png")
     finally:
         plt.close(fig)
     return os.fspath(path)
@@ -308,15 +330,18 @@ def motion_positions(motion) -> np.ndarray:
 
 def preview_writers(positions, parents, name: str, *, fps: float = 30.0, every: int = 5,
                     keyframes: Sequence[int] = (), generated=None, gif: bool = False, stride: int = 1,
-                    title: Optional[str] = None, first_frame: int = 0, positions_b=None, parents_b=None) -> dict:
+                    title: Optional[str] = None, first_frame: int = 0, positions_b=None, parents_b=None,
+                    progress: Progress = None) -> dict:
     """Checked writers of a motion's previews, ``{file name: writer(path) -> path}``, to be called later
     (e.g. all into a temporary folder, so that a failure writes nothing).
 
     positions: (T, J, 3); keyframes / generated / every / first_frame as in :func:`contact_sheet`.
-    One character: ``<name>_sheet.png`` (and ``<name>.gif`` with ``gif``, every ``stride``-th frame).
+    One character: ``<name>_sheet.png`` (and ``<name>.gif`` with ``gif``, every ``stride``-th frame or
+    sparser, see :func:`animate`).
     Two characters (positions_b (T, Jb, 3) on ``parents_b``, default ``parents``): one sheet per character,
     ``<name>_A_sheet.png`` and ``<name>_B_sheet.png``, and one GIF showing both.
-    The inputs are checked here (ValueError with a one-line message).
+    The inputs are checked here (ValueError with a one-line message). ``progress(done, total)`` is passed
+    to each writer (it counts from 0 again for each file).
     """
     pos, par = _check_positions(positions, parents)
     t = pos.shape[0]
@@ -335,22 +360,24 @@ def preview_writers(positions, parents, name: str, *, fps: float = 30.0, every: 
         label = f"{title}{' -- character ' + suffix[1] if suffix else ''}" if title else None
         files[f"{name}{suffix}_sheet.png"] = (
             lambda path, p=p, pa=pa, label=label: contact_sheet(p, pa, path, every=int(every), keyframes=keys,
-                                                                title=label, generated=gen, first_frame=first_frame))
+                                                                title=label, generated=gen, first_frame=first_frame,
+                                                                progress=progress))
     if gif:
         two = len(chars) == 2
         files[f"{name}.gif"] = lambda path: animate(
             pos, par, path, fps=fps, keyframes=keys, positions_b=chars[1][1] if two else None,
-            parents_b=chars[1][2] if two else None, stride=int(stride), first_frame=first_frame)
+            parents_b=chars[1][2] if two else None, stride=int(stride), first_frame=first_frame,
+            progress=progress)
     return files
 
 
 def bvh_previews(motion, name: str, frames=(None, None), every: int = 5, keyframes: Sequence[int] = (),
-                 gif: bool = False) -> dict:
+                 gif: bool = False, *, progress: Progress = None) -> dict:
     """Checked writers (see :func:`preview_writers`) of the previews of frames [a, b) of a BVH motion.
 
     frames: (a, b), either may be None; negative numbers count from the end.  keyframes: frame numbers
     of the file (drawn black; they must lie in the selection); the sheet and the GIF print file frame
-    numbers.  Writes ``<name>_sheet.png`` (and ``<name>.gif``).
+    numbers.  Writes ``<name>_sheet.png`` (and ``<name>.gif``); ``progress`` as in :func:`preview_writers`.
     """
     n = motion.num_frames
     a, b = frames
@@ -365,4 +392,5 @@ def bvh_previews(motion, name: str, frames=(None, None), every: int = 5, keyfram
                          f"[{first}, {first + len(sel)})")
     part = motion.slice(sel.start, sel.stop)
     return preview_writers(motion_positions(part), part.skeleton.parents, name, fps=motion.fps, every=every,
-                           keyframes=keys, gif=gif, title=name, first_frame=first)
+                           keyframes=keys, gif=gif, title=name, first_frame=first,
+                           progress=progress)

@@ -1,4 +1,5 @@
 """Previews (contact sheets, GIFs, error plots) drawn from the shipped CMU motions."""
+import dataclasses
 import importlib.util
 import os
 
@@ -9,7 +10,7 @@ from PIL import Image
 
 from inbetween_jax import viz
 from inbetween_jax.cli import main
-from inbetween_jax.data import load_motions
+from inbetween_jax.data import load_motions, read_bvh, write_bvh
 from inbetween_jax.data.datasets import EMBEDDED_DIR
 from inbetween_jax.geometry import forward_kinematics
 
@@ -195,3 +196,140 @@ def test_preview_command(tmp_path, capsys):
         assert len(err) == 1 and err[0].startswith("inbetween: error: ") and all(p in err[0] for p in phrases), err
         assert not bad_out.exists()
     assert not [p for p in os.listdir(tmp_path) if p.startswith(".")]    # no temporary folder left behind
+
+
+# ------------------------------------------------------------------ bounded work, GIF timing, interrupts
+def _gif_delays(path):
+    """(frame count, [delay ms of each frame]) read back with Pillow."""
+    with Image.open(path) as im:
+        delays = []
+        for k in range(im.n_frames):
+            im.seek(k)
+            delays.append(im.info["duration"])
+        return im.n_frames, delays
+
+
+def _progress_log():
+    calls = []
+    return calls, lambda done, total: calls.append((done, total))
+
+
+@pytest.mark.parametrize("hz", [30, 120])
+def test_gif_plays_as_long_as_the_motion(tmp_path, hz):
+    """A real clip, as recorded (30 Hz) and with its frames played at 120 Hz: integer stride to <= 30 fps,
+    delays of 20 ms or more adding up to the motion's duration (within 5 %), read back with Pillow."""
+    motion = read_bvh(os.path.join(EMBEDDED_DIR, "02_01.bvh"))
+    if hz != 30:
+        motion = dataclasses.replace(motion, frame_time=1.0 / hz)
+    pos, t = viz.motion_positions(motion), motion.num_frames
+    calls, progress = _progress_log()
+    path = viz.animate(pos, motion.skeleton.parents, tmp_path / "m.gif", fps=motion.fps, size=2.0, dpi=40,
+                       progress=progress)
+    stride = {30: 1, 120: 4}[hz]                          # 30 Hz file: frame time 0.03333332 s, every frame
+    n, delays = _gif_delays(path)
+    assert n == len(range(0, t, stride)) and min(delays) >= 20
+    assert abs(sum(delays) / 1000.0 - t / motion.fps) <= 0.05 * t / motion.fps
+    assert abs(n / (sum(delays) / 1000.0) - motion.fps / stride) <= 0.05 * motion.fps / stride
+    assert calls == [(k, n + 1) for k in range(1, n + 2)]
+
+
+def test_frame_plans_are_bounded():
+    """Pure arithmetic of the frame choices (no drawing)."""
+    for t, fps in [(20000, 120.0), (86, 1 / 0.03333332), (1000, 60.0), (1000, 100.0), (7, 120.0), (1, 24.0)]:
+        plan = viz.gif_frames(t, fps)
+        assert len(plan.frames) <= viz.MAX_GIF_FRAMES and plan.frames == list(range(0, t, plan.stride))
+        assert fps / plan.stride <= viz.MAX_GIF_FPS * 1.01 and min(plan.durations_ms) >= 20
+        assert all(d % 10 == 0 for d in plan.durations_ms)
+        assert abs(sum(plan.durations_ms) - 1000.0 * t / fps) <= 5 + 20 * (t / fps < 0.25)
+    assert [viz.gif_frames(300, f).stride for f in (1 / 0.03333332, 50.0, 60.0, 100.0, 120.0)] == [1, 2, 2, 4, 4]
+    assert viz.gif_frames(20000, 120.0).stride == 50 and "every 50th frame" in viz.gif_frames(20000, 120.0).note
+    assert viz.gif_frames(100, 30.0, stride=3).stride == 3 and viz.gif_frames(100, 30.0, stride=3).note == ""
+
+    plan = viz.sheet_frames(20000, every=5)
+    assert plan.step == 500 and len(plan.frames) == 40 and "every 500th of 20000 frames" in plan.note
+    plan = viz.sheet_frames(40, every=5, keyframes=(0, 30))
+    assert plan.frames == [0, 5, 10, 15, 20, 25, 30, 35] and plan.note == ""
+    keys = list(range(3, 20000, 97))                        # 207 keyframes: a long infill with many gaps
+    plan = viz.sheet_frames(20000, every=1250, keyframes=keys)
+    assert len(plan.frames) <= viz.MAX_POSES and set(plan.keyframes) <= set(keys) and len(plan.keyframes) == 20
+    assert plan.keyframes[0] == 3 and plan.keyframes[-1] == keys[-1] and "20 of 207 keyframes" in plan.note
+
+
+@pytest.fixture(scope="module")
+def long_bvh(tmp_path_factory):
+    """~20,000 frames at 120 Hz: a shipped CMU clip played forwards and backwards (real frames, no jumps)."""
+    motion = read_bvh(os.path.join(EMBEDDED_DIR, "05_01.bvh"))
+    order = np.resize(np.r_[np.arange(motion.num_frames), np.arange(motion.num_frames - 2, 0, -1)], 20000)
+    long = dataclasses.replace(motion, local_quats=motion.local_quats[order], local_pos=motion.local_pos[order],
+                               frame_time=1.0 / 120.0)
+    path = tmp_path_factory.mktemp("long") / "long.bvh"
+    write_bvh(path, long)
+    return str(path)
+
+
+def _pose_columns(rgb, hex_color):
+    """Number of runs of image columns holding ``hex_color`` (poses spread evenly never share a column)."""
+    cols = np.any(np.all(np.abs(rgb - [int(hex_color[i:i + 2], 16) for i in (1, 3, 5)]) <= 2, -1), 0)
+    return int(np.sum(cols[1:] & ~cols[:-1]) + cols[0])
+
+
+def test_long_file_sheet_is_bounded(long_bvh, tmp_path):
+    """The 20,000-frame file: the sheet draws 40 poses (every 500th frame, said in the title), not 4,000."""
+    motion = read_bvh(long_bvh)
+    assert motion.num_frames == 20000 and abs(motion.fps - 120.0) < 1e-3
+    calls, progress = _progress_log()
+    files = viz.bvh_previews(motion, "long", every=5, progress=progress)
+    assert list(files) == ["long_sheet.png"]
+    files["long_sheet.png"](str(tmp_path / "long_sheet.png"))
+    assert calls[-1] == (41, 41) and len(calls) == 41          # 40 poses, then the save
+    rgb = _rgb255(tmp_path / "long_sheet.png")
+    assert rgb.shape[0] == round((2.5 + 0.3) * 100)               # a title line: the note
+    assert _pose_columns(rgb, viz.OTHER_COLOR) == 40
+
+
+@pytest.mark.slow
+def test_long_file_preview_command(long_bvh, tmp_path, capsys):
+    """``inbetween preview --gif`` of the 20,000-frame file: 400 GIF frames (every 50th), 410-420 ms each,
+    166.7 s in all like the motion; 40 poses on the sheet."""
+    out = tmp_path / "out"
+    assert main(["preview", long_bvh, "--gif", "--out", str(out)]) == 0
+    assert sorted(os.listdir(out)) == ["long.gif", "long_sheet.png"]
+    n, delays = _gif_delays(out / "long.gif")
+    assert n == 400 == len(range(0, 20000, 50)) and set(delays) == {410, 420}
+    assert abs(sum(delays) / 1000.0 - 20000 / 120.0) <= 0.05 * 20000 / 120.0
+    assert _pose_columns(_rgb255(out / "long_sheet.png"), viz.OTHER_COLOR) == 40
+    capsys.readouterr()
+
+
+def test_interrupt_leaves_destination_untouched(clips, tmp_path):
+    """Ctrl-C (KeyboardInterrupt) while drawing or while writing: the old file stays, no temporary file is left;
+    files are created 0644 less the umask."""
+    pos, parents = clips[0]
+    dest = tmp_path / "m.gif"
+    dest.write_bytes(b"old")
+
+    def stop_at_3(done, total):
+        if done == 3:
+            raise KeyboardInterrupt
+    with pytest.raises(KeyboardInterrupt):
+        viz.animate(pos[:20], parents, dest, size=2.0, dpi=40, progress=stop_at_3)
+    with pytest.raises(KeyboardInterrupt):
+        viz.contact_sheet(pos[:20], parents, tmp_path / "m.gif", dpi=DPI, progress=stop_at_3)
+
+    def half_then_stop(fh):
+        fh.write(b"GIF89a" + b"\0" * 1000)
+        raise KeyboardInterrupt
+    with pytest.raises(KeyboardInterrupt):
+        viz.save_atomic(dest, half_then_stop, ".gif")
+    assert dest.read_bytes() == b"old" and os.listdir(tmp_path) == ["m.gif"]
+
+    old = os.umask(0o022)
+    try:
+        viz.contact_sheet(pos[:20], parents, tmp_path / "a.png", dpi=DPI)
+        os.umask(0o027)
+        viz.animate(pos[:5], parents, tmp_path / "b.gif", size=2.0, dpi=40)
+    finally:
+        os.umask(old)
+    assert os.stat(tmp_path / "a.png").st_mode & 0o777 == 0o644
+    assert os.stat(tmp_path / "b.gif").st_mode & 0o777 == 0o640
+    assert sorted(os.listdir(tmp_path)) == ["a.png", "b.gif", "m.gif"]
