@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 
 from inbetween_jax.errors import UserError
 from inbetween_jax.models import MODELS, REGISTRY
@@ -170,8 +171,21 @@ def run_preview(args) -> int:
     motion = read_motion(args.bvh)
     from inbetween_jax.viz import bvh_previews
     name = os.path.splitext(os.path.basename(args.bvh))[0]
-    files = bvh_previews(motion, name, args.frames, args.every, args.keyframes, args.gif)
+    files = bvh_previews(motion, name, args.frames, args.every, args.keyframes, args.gif,
+                         progress=drawing_progress(sys.stderr.isatty()))
     write_outputs(args.out, files)
     for f in files:
         print(os.path.join(args.out, f))
     return 0
+
+
+def drawing_progress(live: bool):
+    """``progress(done, total)`` for the previews: a live counter on a terminal, else a line at the end of each
+    file (``preview: drawing 400/400``)."""
+    def progress(done: int, total: int) -> None:
+        if live:
+            print(f"\rpreview: drawing {done}/{total}", end="\n" if done == total else "", file=sys.stderr,
+                  flush=True)
+        elif done == total:
+            print(f"preview: drew {total} frames", file=sys.stderr, flush=True)
+    return progress
