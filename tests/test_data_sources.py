@@ -142,6 +142,13 @@ def test_split_is_announced_once(tmp_path, monkeypatch, capfd):
     for n in names[:2]:
         os.symlink(shared(n), two / os.path.basename(n))
     assert len(split_files(str(two), "train")) == len(split_files(str(two), "test")) == 1
+    # one file: used for both, and said so
+    one = tmp_path / "one"
+    one.mkdir()
+    os.symlink(shared(DAZ30), one / "35_24.bvh")
+    assert split_files(str(one), "train") == split_files(str(one), "test") == [str(one / "35_24.bvh")]
+    load_motions(str(one), "train")
+    assert f"data: {one}: 1 file (35_24.bvh), used for both training and test" in capfd.readouterr().err
 
 
 @requires_cmu

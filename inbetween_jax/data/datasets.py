@@ -175,24 +175,26 @@ def _read_motions(source: str, split: str, fps: float, unit_scale: Optional[floa
     """(motions at ``fps``, the resampling notice or None); one skeleton and one unit per folder."""
     files = split_files(source, split)
     motions, rates = [], Counter()
+    scale0 = None
     for f in _progress(files, f"reading {split} BVH"):
         m = read_bvh(f)
+        if motions:  # checked as read: a wrong file fails before the rest of the folder is parsed
+            first = motions[0]
+            if not m.skeleton.same_topology(first.skeleton):
+                raise ValueError(f"{m.source}: its skeleton differs from {first.source} "
+                                 f"({skeleton_difference(m.skeleton, first.skeleton)}); use one skeleton per folder")
+            if scale0 is not None:
+                s = detect_unit_scale(m.skeleton)
+                if max(s, scale0) / min(s, scale0) > 1.5:
+                    raise ValueError(f"{m.source}: its bone lengths put it at {s:g} cm per unit but {first.source} "
+                                     f"at {scale0:g} (files in different units?); use one unit per folder")
+        elif unit_scale is None:
+            scale0 = detect_unit_scale(m.skeleton)
         src = nominal_fps(m.frame_time)
         r = resample_motion(m, fps)
         if r is not m:
             rates[src] += 1
         motions.append(r)
-    first = motions[0]
-    scale0 = None if unit_scale is not None else detect_unit_scale(first.skeleton)
-    for m in motions[1:]:
-        if not m.skeleton.same_topology(first.skeleton):
-            raise ValueError(f"{m.source}: its skeleton differs from {first.source} "
-                             f"({skeleton_difference(m.skeleton, first.skeleton)}); use one skeleton per folder")
-        if scale0 is not None:
-            s = detect_unit_scale(m.skeleton)
-            if max(s, scale0) / min(s, scale0) > 1.5:
-                raise ValueError(f"{m.source}: its bone lengths put it at {s:g} cm per unit but {first.source} at "
-                                 f"{scale0:g} (files in different units?); use one unit per folder")
     note = None
     if rates:
         folder = "embedded" if source == "embedded" else source
