@@ -5,28 +5,45 @@
 * ``"embedded"`` -- the real CMU mocap shipped in ``inbetween_jax/assets/cmu30`` (30 Hz, 21 joints);
   subjects 13 and 14 are the test split, the rest train.
 * a folder of LaFAN1 files (``<action>_subjectN.bvh``) -- the official LaFAN1 splits and windows.
-* any other folder of BVH files on one skeleton -- ``<stem>`` sorted, the last 20 % test.
+* any other folder of BVH files on one skeleton -- ``<stem>`` sorted, the last 20 % test; loading its
+  training split prints one line on stderr naming the train / test counts and the test files.
+
+Frame rate: window lengths, offsets and per-frame thresholds count frames at :data:`WORKING_FPS` (30, the
+LaFAN1 and embedded rate; the ``fps`` argument changes it). Files at any other rate (120 Hz CMU, 50, 24 ...)
+are resampled to it as they are read -- rotations slerped, positions interpolated, at times ``k / fps`` -- and
+one line on stderr says so (``data: <folder>: 120 fps files resampled to 30 fps``).
+
+Units: positions stay in the files' units. The centimetres per unit are detected from the skeleton's leg length
+(:func:`~inbetween_jax.data.features.detect_unit_scale`: exactly 1.0 for LaFAN1 and the embedded data, about 130
+for the 1/128-scaled CMU salsa files) or given as ``unit_scale``; the centimetre contact thresholds are applied
+through it and :class:`MotionWindows` carries it as ``unit_scale``. Files of one folder must share a skeleton
+and a unit (one-line ValueError naming the first file that differs otherwise).
 
 Windows are prepared once into an ``.npz`` cache keyed by the files' names, sizes and mtimes and the
-window settings, under ``$INBETWEEN_JAX_CACHE`` (default ``~/.cache/inbetween_jax``).
+window settings (frame rate and any explicit unit scale included), under ``$INBETWEEN_JAX_CACHE`` (default
+``~/.cache/inbetween_jax``).
 """
 from __future__ import annotations
 
 import hashlib
 import json
 import os
+import sys
+from collections import Counter
 from typing import Optional
 
 import numpy as np
 
 from inbetween_jax.data import lafan1
 from inbetween_jax.data.bvh import Motion, read_bvh
+from inbetween_jax.data.features import detect_unit_scale
+from inbetween_jax.data.resample import WORKING_FPS, nominal_fps, resample_motion
 from inbetween_jax.data.skeleton import Skeleton
 from inbetween_jax.data.windows import MotionWindows, windows_from_motions
 
 EMBEDDED_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "assets", "cmu30")
 EMBEDDED_TEST_PREFIXES = ("13_", "14_")
-CACHE_VERSION = 1
+CACHE_VERSION = 2
 GENERIC_CONTACT_VELFACTOR = 1.0  # squared cm per frame
 
 
@@ -43,7 +60,11 @@ def is_lafan1(source: str) -> bool:
 
 
 def split_files(source: str, split: str) -> list:
-    """BVH paths of ``split`` (``train`` / ``test`` / ``benchmark``) for ``source``."""
+    """BVH paths of ``split`` (``train`` / ``test`` / ``benchmark``) for ``source``.
+
+    A generic folder's files are sorted by name and the last 20 % (at least one) are the test split; a
+    folder holding a single file uses it for both.
+    """
     if split not in ("train", "test", "benchmark"):
         raise ValueError(f"unknown split {split!r}; choose train, test or benchmark")
     if source == "embedded" or not is_lafan1(source):
@@ -55,14 +76,31 @@ def split_files(source: str, split: str) -> list:
             raise FileNotFoundError(f"no .bvh files in {folder!r}")
         if source == "embedded":
             test = [f for f in files if os.path.basename(f).startswith(EMBEDDED_TEST_PREFIXES)]
+        elif len(files) == 1:
+            return files
         else:
-            test = files[int(round(len(files) * 0.8)):] if len(files) > 1 else files
+            test = files[min(int(round(len(files) * 0.8)), len(files) - 1):]
         return test if split != "train" else [f for f in files if f not in test]
     return lafan1.lafan1_files(source, lafan1.split_spec(split)["subjects"])
 
 
-def window_settings(source: str, split: str) -> dict:
-    """Window length, offset, past frames and root forward axis for a split of a source."""
+def split_note(source: str) -> Optional[str]:
+    """The line telling which files of a generic BVH folder are train and test (None for LaFAN1 / embedded)."""
+    source = resolve_source(source)
+    if source == "embedded" or is_lafan1(source):
+        return None
+    train, test = split_files(source, "train"), split_files(source, "test")
+    if train == test:
+        return f"data: {source}: 1 file ({os.path.basename(test[0])}), used for both training and test"
+    names = [os.path.basename(f) for f in test]
+    if len(names) > 6:
+        names = names[:4] + ["...", names[-1]]
+    return (f"data: {source}: {len(train)} train / {len(test)} test files (the last 20 % by name); "
+            f"test: {', '.join(names)}")
+
+
+def window_settings(source: str, split: str, fps: float = WORKING_FPS) -> dict:
+    """Window length, offset, past frames, root forward axis, contact threshold and frame rate of a split."""
     spec = lafan1.split_spec(split)
     if is_lafan1(source):
         forward, velfactor = lafan1.ROOT_FORWARD_AXIS, lafan1.CONTACT_VELFACTOR
@@ -71,48 +109,130 @@ def window_settings(source: str, split: str) -> dict:
         # almost no CMU stance frames (their ankles pivot ~0.5-1 cm per frame at 30 Hz), so use 1 cm/frame
         forward, velfactor = None, GENERIC_CONTACT_VELFACTOR
     return dict(window=spec["window"], offset=spec["offset"], n_past=lafan1.N_PAST, forward_axis=forward,
-                contact_velfactor=velfactor)
+                contact_velfactor=velfactor, fps=float(fps))
 
 
-def load_motions(source: Optional[str] = None, split: str = "train") -> list:
-    """Whole motions (list of :class:`Motion`) of a split, all on one skeleton."""
+def load_motions(source: Optional[str] = None, split: str = "train", fps: float = WORKING_FPS,
+                 unit_scale: Optional[float] = None) -> list:
+    """Whole motions (list of :class:`Motion`) of a split, all on one skeleton, at ``fps`` frames per second.
+
+    Files at another rate are resampled (:func:`~inbetween_jax.data.resample.resample_motion`) and a line on
+    stderr says so; loading a generic folder's training split also names its test files there.  Positions stay
+    in the files' units: ``detect_unit_scale(motions[0].skeleton)`` gives centimetres per unit.  Files whose
+    bone lengths put them in different units raise ValueError unless ``unit_scale`` (cm per unit, asserted for
+    every file) is given.
+    """
     source = resolve_source(source)
-    motions = [read_bvh(f) for f in _progress(split_files(source, split), f"reading {split} BVH")]
-    first = motions[0]
-    for m in motions[1:]:
-        if not m.skeleton.same_topology(first.skeleton):
-            raise ValueError(f"{m.source}: its skeleton ({m.skeleton.num_joints} joints) differs from "
-                             f"{first.source} ({first.skeleton.num_joints} joints); use one skeleton per folder")
+    if split == "train":
+        _notice(split_note(source))
+    motions, note = _read_motions(source, split, fps, unit_scale)
+    _notice(note)
     return motions
 
 
 def load_dataset(source: Optional[str] = None, split: str = "train", window: Optional[int] = None,
-                 offset: Optional[int] = None, use_cache: bool = True) -> MotionWindows:
+                 offset: Optional[int] = None, use_cache: bool = True, fps: float = WORKING_FPS,
+                 unit_scale: Optional[float] = None) -> MotionWindows:
     """Canonicalised windows of a split (see module docstring), cached as npz.
 
-    ``window`` / ``offset`` override the split's defaults (50/20 train and test, 65/40 benchmark).
+    ``window`` / ``offset`` override the split's defaults (50/20 train and test, 65/40 benchmark), counted in
+    frames at ``fps`` (files at other rates are resampled).  Foot contacts use centimetre thresholds through
+    ``unit_scale`` (cm per file unit; detected from the skeleton when None, see
+    :func:`~inbetween_jax.data.features.detect_unit_scale`), which the result carries as ``.unit_scale``.
     """
     source = resolve_source(source)
     files = split_files(source, split)
-    ws = window_settings(source, split)
+    ws = window_settings(source, split, fps)
     if window is not None:
         ws["window"] = int(window)
     if offset is not None:
         ws["offset"] = int(offset)
+    if unit_scale is not None:
+        ws["unit_scale"] = _check_scale(unit_scale)
+    if split == "train":
+        _notice(split_note(source))
     key = _cache_key(files, ws)
     path = os.path.join(cache_dir(), "windows", f"{split}-{key}.npz")
     if use_cache and os.path.exists(path):
         try:
-            return _load_npz(path)
+            data, note = _load_npz(path)
+            _notice(note)
+            return data
         except (OSError, ValueError, KeyError):
             pass  # a damaged cache is rebuilt below
-    motions = load_motions(source, split)
+    motions, note = _read_motions(source, split, fps, unit_scale)
+    _notice(note)
+    scale = ws.get("unit_scale") or detect_unit_scale(motions[0].skeleton)
     forward = ws["forward_axis"] or tuple(motions[0].skeleton.forward_axis())
     data = windows_from_motions(motions, ws["window"], ws["offset"], ws["n_past"], forward,
-                                ws["contact_velfactor"])
+                                ws["contact_velfactor"], scale)
     if use_cache:
-        _save_npz(path, data)
+        _save_npz(path, data, note)
     return data
+
+
+def _read_motions(source: str, split: str, fps: float, unit_scale: Optional[float]):
+    """(motions at ``fps``, the resampling notice or None); one skeleton and one unit per folder."""
+    files = split_files(source, split)
+    motions, rates = [], Counter()
+    scale0 = None
+    for f in _progress(files, f"reading {split} BVH"):
+        m = read_bvh(f)
+        if motions:  # checked as read: a wrong file fails before the rest of the folder is parsed
+            first = motions[0]
+            if not m.skeleton.same_topology(first.skeleton):
+                raise ValueError(f"{m.source}: its skeleton differs from {first.source} "
+                                 f"({skeleton_difference(m.skeleton, first.skeleton)}); use one skeleton per folder")
+            if scale0 is not None:
+                s = detect_unit_scale(m.skeleton)
+                if max(s, scale0) / min(s, scale0) > 1.5:
+                    raise ValueError(f"{m.source}: its bone lengths put it at {s:g} cm per unit but {first.source} "
+                                     f"at {scale0:g} (files in different units?); use one unit per folder")
+        elif unit_scale is None:
+            scale0 = detect_unit_scale(m.skeleton)
+        src = nominal_fps(m.frame_time)
+        r = resample_motion(m, fps)
+        if r is not m:
+            rates[src] += 1
+        motions.append(r)
+    note = None
+    if rates:
+        folder = "embedded" if source == "embedded" else source
+        if len(rates) == 1 and sum(rates.values()) == len(files):
+            what = f"{_fmt_fps(next(iter(rates)))} fps files"
+        else:
+            what = ", ".join(f"{n} file{'s' if n > 1 else ''} at {_fmt_fps(r)} fps" for r, n in sorted(rates.items()))
+        note = f"data: {folder}: {what} resampled to {_fmt_fps(fps)} fps"
+    return motions, note
+
+
+def skeleton_difference(a: Skeleton, b: Skeleton) -> str:
+    """How skeleton ``a`` differs from ``b`` in joints or hierarchy, in a few words ("" when the same)."""
+    if a.num_joints != b.num_joints:
+        return f"{a.num_joints} joints instead of {b.num_joints}"
+    for j, (x, y) in enumerate(zip(a.names, b.names)):
+        if x != y:
+            return f"joint {j} is {x!r} instead of {y!r}"
+    for j, (x, y) in enumerate(zip(a.parents, b.parents)):
+        if x != y:
+            return f"joint {a.names[j]!r} hangs from {a.names[x]!r} instead of {b.names[y]!r}"
+    return ""
+
+
+def _check_scale(unit_scale) -> float:
+    scale = float(unit_scale)
+    if not (np.isfinite(scale) and scale > 0):
+        raise ValueError(f"unit_scale must be a positive number of cm per file unit, got {unit_scale!r}")
+    return scale
+
+
+def _fmt_fps(fps: float) -> str:
+    return f"{fps:g}" if abs(fps - round(fps)) < 1e-9 else f"{fps:.3f}".rstrip("0")
+
+
+def _notice(line: Optional[str]) -> None:
+    if line:
+        print(line, file=sys.stderr, flush=True)
 
 
 def cache_dir() -> str:
@@ -127,20 +247,23 @@ def _cache_key(files, settings) -> str:
     return h.hexdigest()[:16]
 
 
-def _save_npz(path: str, data: MotionWindows) -> None:
+def _save_npz(path: str, data: MotionWindows, note: Optional[str] = None) -> None:
     os.makedirs(os.path.dirname(path), exist_ok=True)
     tmp = path + f".tmp{os.getpid()}.npz"
     np.savez(tmp, local_quats=data.local_quats, root_pos=data.root_pos, contacts=data.contacts,
              seq_names=np.asarray(data.seq_names), fps=np.float64(data.fps),
+             unit_scale=np.float64(data.unit_scale), note=np.asarray(note or ""),
              skeleton=np.asarray(json.dumps(data.skeleton.to_dict())))
     os.replace(tmp, path)
 
 
-def _load_npz(path: str) -> MotionWindows:
+def _load_npz(path: str):
+    """(MotionWindows, the resampling notice stored with them or None)."""
     with np.load(path, allow_pickle=False) as z:
         skel = Skeleton.from_dict(json.loads(str(z["skeleton"])))
-        return MotionWindows(z["local_quats"], z["root_pos"], z["contacts"], skel, [str(s) for s in z["seq_names"]],
-                             float(z["fps"]))
+        data = MotionWindows(z["local_quats"], z["root_pos"], z["contacts"], skel,
+                             [str(s) for s in z["seq_names"]], float(z["fps"]), float(z["unit_scale"]))
+        return data, (str(z["note"]) or None)
 
 
 def _progress(items, desc):
@@ -151,4 +274,5 @@ def _progress(items, desc):
         return items
 
 
-__all__ = ["Motion", "MotionWindows", "load_dataset", "load_motions", "resolve_source", "split_files"]
+__all__ = ["Motion", "MotionWindows", "WORKING_FPS", "detect_unit_scale", "load_dataset", "load_motions",
+           "resolve_source", "skeleton_difference", "split_files", "split_note", "window_settings"]

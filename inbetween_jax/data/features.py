@@ -1,4 +1,4 @@
-"""Per-frame features derived from motion: foot contacts, root velocity, normalisation statistics."""
+"""Per-frame features derived from motion: unit scale, foot contacts, root velocity, normalisation statistics."""
 from __future__ import annotations
 
 import dataclasses
@@ -8,15 +8,60 @@ import numpy as np
 from inbetween_jax.geometry.quaternion import _xp
 
 
-def foot_contacts(foot_pos: np.ndarray, velfactor: float = 0.02) -> np.ndarray:
-    """LaFAN1 contact labels: a foot joint is in contact when its squared displacement to the next
-    frame is below ``velfactor``; the last frame repeats the previous label.
+# Unit detection: the root-to-ankle chain (hip offset + thigh + shin) of adult actors measures about 96.5 cm:
+# 96.6 in LaFAN1, 94.9 in the CMU Daz/Poser conversion, 96-101 cm (17-18 units of 2.54 / 0.45 cm) in the five
+# subjects of the CMU ASF-unit conversion. A skeleton whose leg is L file units is taken as 96.5 / L cm per unit.
+REFERENCE_LEG_CM = 96.5
+# Estimates within 5 % of a common unit are snapped to it (cm, mm, m, inch, CMU ASF unit = 1/0.45 inch).
+KNOWN_UNITS_CM = (1.0, 0.1, 100.0, 2.54, 2.54 / 0.45)
+_SNAP_RTOL = 0.05
 
-    foot_pos: (T, F, 3) global positions of the F foot joints. Returns (T, F) float32 in {0, 1}.
+
+def leg_length(skeleton) -> float:
+    """Mean length (file units) of the bone chains from the root to the two ankle joints, from the offsets."""
+    off = np.asarray(skeleton.offsets, np.float64)
+    lengths = []
+    for ankle in skeleton.foot_joints()[0::2]:
+        total, j = 0.0, ankle
+        while j > 0:
+            total += float(np.linalg.norm(off[j]))
+            j = skeleton.parents[j]
+        lengths.append(total)
+    return float(np.mean(lengths))
+
+
+def detect_unit_scale(skeleton) -> float:
+    """Centimetres per file unit of ``skeleton``'s offsets, estimated from its leg length (see
+    :data:`REFERENCE_LEG_CM`): 1.0 for LaFAN1 and the embedded CMU data, 2.54 / 0.45 for CMU ASF-unit files,
+    about 128 for the 1/128-scaled CMU salsa files.
+
+    Estimates within 5 % of a unit in :data:`KNOWN_UNITS_CM` return that unit exactly, others are rounded to
+    3 significant digits.  A skeleton without recognisable feet (or with zero-length legs) gives 1.0.  The
+    estimate assumes an adult: pass an explicit scale for children, animals or unusual rigs.
+    """
+    try:
+        leg = leg_length(skeleton)
+    except KeyError:
+        return 1.0
+    if not np.isfinite(leg) or leg <= 0:
+        return 1.0
+    raw = REFERENCE_LEG_CM / leg
+    for unit in KNOWN_UNITS_CM:
+        if abs(raw / unit - 1.0) <= _SNAP_RTOL:
+            return float(unit)
+    return float(f"{raw:.3g}")
+
+
+def foot_contacts(foot_pos: np.ndarray, velfactor: float = 0.02, unit_scale: float = 1.0) -> np.ndarray:
+    """LaFAN1 contact labels: a foot joint is in contact when its squared displacement to the next
+    frame is below ``velfactor`` (cm^2 per frame^2); the last frame repeats the previous label.
+
+    foot_pos: (T, F, 3) global positions of the F foot joints in file units, ``unit_scale`` cm per unit
+    (:func:`detect_unit_scale`). Returns (T, F) float32 in {0, 1}.
     """
     if foot_pos.shape[0] < 2:
         return np.zeros(foot_pos.shape[:2], np.float32)
-    sq = np.sum((foot_pos[1:] - foot_pos[:-1]) ** 2, axis=-1)
+    sq = np.sum((foot_pos[1:] - foot_pos[:-1]) ** 2, axis=-1) * float(unit_scale) ** 2
     c = (sq < velfactor).astype(np.float32)
     return np.concatenate([c, c[-1:]], axis=0)
 

@@ -14,7 +14,7 @@ import numpy as np
 from inbetween_jax.errors import UserError
 
 __all__ = ["split_spec", "read_motion", "read_keyframe", "pick_frame", "check_skeleton", "same_skeleton",
-           "check_unit_quats", "read_json", "finite_or_fail", "parse_gaps"]
+           "check_unit_quats", "read_json", "finite_or_fail", "merge_gaps", "parse_gaps"]
 
 
 def split_spec(spec: str, option: str) -> tuple:
@@ -110,8 +110,35 @@ def finite_or_fail(what: str, *arrays) -> None:
         raise UserError(f"{what}: the model produced NaN or inf (is the checkpoint diverged?)")
 
 
-def parse_gaps(text: str, num_frames=None, path: str = "") -> list:
-    """``"100:160,300:420"`` -> ``[(100, 160), (300, 420)]`` (stop exclusive), checked against the clip."""
+def merge_gaps(gaps) -> tuple:
+    """Sort ``[(start, stop), ...]`` gaps (stop exclusive) and merge overlapping or touching ones.
+
+    Returns ``(merged, message)``: the union as a sorted list of disjoint, non-touching gaps, and a line
+    such as ``"overlapping gaps merged into 20:50"`` when anything was merged (None otherwise).
+    """
+    merged, groups = [], []
+    for a, b in sorted((int(a), int(b)) for a, b in gaps):
+        if merged and a <= merged[-1][1]:
+            groups[-1].append((a, b))
+            merged[-1] = (merged[-1][0], max(merged[-1][1], b))
+        else:
+            merged.append((a, b))
+            groups.append([(a, b)])
+    joined = [(m, g) for m, g in zip(merged, groups) if len(g) > 1]
+    if not joined:
+        return merged, None
+    overlap = any(g[i + 1][0] < max(e for _, e in g[:i + 1]) for _, g in joined for i in range(len(g) - 1))
+    touch = any(g[i + 1][0] == max(e for _, e in g[:i + 1]) for _, g in joined for i in range(len(g) - 1))
+    kind = " or ".join(k for k, on in (("overlapping", overlap), ("touching", touch)) if on)
+    return merged, f"{kind} gaps merged into {', '.join(f'{a}:{b}' for (a, b), _ in joined)}"
+
+
+def parse_gaps(text: str, num_frames=None, path: str = "", notes=None) -> list:
+    """``"100:160,300:420"`` -> ``[(100, 160), (300, 420)]`` (stop exclusive), checked against the clip.
+
+    Overlapping or touching gaps are merged (:func:`merge_gaps`); when ``notes`` is a list, the line saying
+    so (``"--gaps 20:40,30:50: overlapping gaps merged into 20:50"``) is appended to it for the caller to print.
+    """
     gaps = []
     for part in text.split(","):
         bits = part.strip().split(":")
@@ -128,13 +155,13 @@ def parse_gaps(text: str, num_frames=None, path: str = "") -> list:
         for a, b in gaps:
             if b > num_frames:
                 raise UserError(f"--gaps {text!r}: gap {a}:{b} goes beyond the end of {path} ({num_frames} frames)")
-        mask = np.zeros(num_frames, bool)
-        for a, b in gaps:
-            mask[a:b] = True
-        if mask.all():
-            raise UserError(f"--gaps {text!r}: the gaps cover all {num_frames} frames of {path}; nothing is left "
-                            "to fill from")
-    return sorted(gaps)
+    gaps, message = merge_gaps(gaps)
+    if num_frames is not None and gaps == [(0, num_frames)]:
+        raise UserError(f"--gaps {text!r}: the gaps cover all {num_frames} frames of {path}; nothing is left "
+                        "to fill from")
+    if message and notes is not None:
+        notes.append(f"--gaps {text}: {message}")
+    return gaps
 
 
 def read_keyframe(spec: str, option: str, default: int, cache: dict) -> tuple:

@@ -26,6 +26,8 @@ class MotionWindows:
     skeleton:    the shared :class:`Skeleton` (``skeleton.offsets`` are the bone offsets used by FK).
     seq_names:   N source names (``"<file stem>@<first frame>"``).
     fps:         frame rate.
+    unit_scale:  centimetres per position unit (1.0 for LaFAN1 and the embedded data; see
+                 :func:`inbetween_jax.data.features.detect_unit_scale`). Positions stay in the files' units.
     """
 
     local_quats: np.ndarray
@@ -34,6 +36,7 @@ class MotionWindows:
     skeleton: Skeleton
     seq_names: list
     fps: float
+    unit_scale: float = 1.0
 
     def __len__(self) -> int:
         return int(self.local_quats.shape[0])
@@ -93,10 +96,13 @@ class MotionWindows:
         for p in parts[1:]:
             if not p.skeleton.same_topology(first.skeleton) or p.window != first.window:
                 raise ValueError("cannot concatenate windows of different skeletons or lengths")
+            if p.unit_scale != first.unit_scale or abs(p.fps - first.fps) > 1e-3:
+                raise ValueError(f"cannot concatenate windows in different units or frame rates "
+                                 f"({first.unit_scale} vs {p.unit_scale} cm per unit, {first.fps} vs {p.fps} fps)")
         return MotionWindows(np.concatenate([p.local_quats for p in parts]),
                              np.concatenate([p.root_pos for p in parts]),
                              np.concatenate([p.contacts for p in parts]), first.skeleton,
-                             sum((p.seq_names for p in parts), []), first.fps)
+                             sum((p.seq_names for p in parts), []), first.fps, first.unit_scale)
 
 
 def window_starts(num_frames: int, window: int, offset: int) -> list:
@@ -134,22 +140,30 @@ def canonicalize(local_quats, root_pos, skeleton: Skeleton, n_past: int, forward
 
 
 def windows_from_motions(motions: Sequence[Motion], window: int, offset: int, n_past: int = 10,
-                         forward_axis=(0.0, 1.0, 0.0), contact_velfactor: float = 0.02) -> MotionWindows:
+                         forward_axis=(0.0, 1.0, 0.0), contact_velfactor: float = 0.02,
+                         unit_scale: float = 1.0) -> MotionWindows:
     """Slice motions into canonicalised windows with foot contacts (official LaFAN1 pipeline).
 
     Contacts are computed on the raw (un-centred) window's FK positions with the official squared
-    velocity threshold ``contact_velfactor`` (cm^2 / frame^2 at LaFAN1 scale).
+    velocity threshold ``contact_velfactor`` (cm^2 / frame^2), positions converted to cm by ``unit_scale``
+    (cm per file unit). All motions must share one frame rate (resample them first:
+    :func:`inbetween_jax.data.resample.resample_motion`); windows and thresholds count frames.
     """
     if not motions:
         raise ValueError("no motions given")
     skel = motions[0].skeleton
+    fps = motions[0].fps
+    for m in motions[1:]:
+        if abs(m.fps - fps) > 2e-3 * fps:
+            raise ValueError(f"{m.source}: {m.fps:.3f} fps differs from {motions[0].source} ({fps:.3f} fps); "
+                             "resample the motions to one rate first")
     quats, roots, contacts, names = [], [], [], []
     feet = list(skel.foot_joints())
     for m in motions:
         if not m.skeleton.same_topology(skel):
             raise ValueError(f"{m.source}: skeleton differs from {motions[0].source}")
         _, gp = forward_kinematics(m.local_quats, m.local_pos, skel.parents)
-        c = foot_contacts(gp[:, feet], contact_velfactor)
+        c = foot_contacts(gp[:, feet], contact_velfactor, unit_scale)
         for s in window_starts(m.num_frames, window, offset):
             quats.append(m.local_quats[s:s + window])
             roots.append(m.root_pos[s:s + window])
@@ -163,4 +177,4 @@ def windows_from_motions(motions: Sequence[Motion], window: int, offset: int, n_
                          f"(longest has {max(m.num_frames for m in motions)} frames)")
     lq, root = canonicalize(np.stack(quats), np.stack(roots), skel, n_past, forward_axis)
     return MotionWindows(lq.astype(np.float32), root.astype(np.float32), np.stack(contacts).astype(np.float32),
-                         skel, names, float(round(1.0 / motions[0].frame_time, 6)))
+                         skel, names, float(round(1.0 / motions[0].frame_time, 6)), float(unit_scale))
