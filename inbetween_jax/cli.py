@@ -282,49 +282,6 @@ def _keyframe(spec, option, default, cache):
 
 
 # ----------------------------------------------------------------------------- per model
-def _run_scvae(args):
-    import dataclasses
-
-    import numpy as np
-
-    from inbetween_jax.cli_infill import (check_skeleton, finite_or_fail, is_lafan1_skeleton,
-                                          keyframe_contacts, same_skeleton, scvae_checkpoint, scvae_frame_range,
-                                          scvae_infill, scvae_restore)
-    from inbetween_jax.data import lafan1
-    info = scvae_checkpoint(args.ckpt)
-    cache = {}
-    sp, sm, sf = _keyframe(args.start, "--start", 0, cache)
-    ep, em, ef = _keyframe(args.end, "--end", -1, cache)
-    skel = sm.skeleton
-    check_skeleton(skel, sp, info["skeleton"], info["num_joints"])
-    same_skeleton(em.skeleton, ep, skel, sp)
-    lo, hi = scvae_frame_range(info["cfg"])
-    if not lo <= args.frames <= hi:
-        raise UserError(f"--frames {args.frames}: this S-CVAE checkpoint generates {lo}..{hi} frames between "
-                        f"keyframes (trained with train.trans_max={hi})")
-    state = scvae_restore(info, skel.num_joints)
-    lafan = info["lafan1"] or is_lafan1_skeleton(skel)
-    ref = info["skeleton"] or skel
-    fa = lafan1.ROOT_FORWARD_AXIS if lafan else tuple(ref.forward_axis())
-    vf = lafan1.CONTACT_VELFACTOR if lafan else info["velfactor"]
-    start = {"q": sm.local_quats[sf], "r": sm.root_pos[sf], "c": keyframe_contacts(sm, sf, vf)}
-    end = {"q": em.local_quats[ef], "r": em.root_pos[ef], "c": keyframe_contacts(em, ef, vf)}
-    res = scvae_infill(info["cfg"], state, skel, start, end, args.frames, args.samples, args.seed, fa)
-    finite_or_fail(args.ckpt, res["q"], res["r"])
-    t = args.frames + 2
-    w = (np.arange(t) / (t - 1))[:, None, None]
-    base_pos = (1 - w) * sm.local_pos[sf] + w * em.local_pos[ef]       # joints with position channels: lerp
-    files = {}
-    for name, q, r in zip(_names(args.samples), res["q"], res["r"]):
-        pos = base_pos.copy()
-        pos[:, 0] = r
-        motion = dataclasses.replace(sm, local_quats=q, local_pos=pos)
-        files[f"{name}.bvh"] = _bvh_writer(motion)
-        _add_previews(files, args, name, [motion])
-    return files, {"start": f"{sp}:{sf}", "end": f"{ep}:{ef}", "frames": args.frames, "samples": args.samples,
-                   "step": info["step"]}
-
-
 def _run_cae(args):
     import numpy as np
 
