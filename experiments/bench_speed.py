@@ -1,299 +1,37 @@
-"""Speed section of ``make bench``: compiled JAX against PyTorch eager, in one process, after warm-up.
+"""Speed section of ``make bench`` (:mod:`inbetween_jax.evaluation.speed`): compiled JAX against the PyTorch-eager
+S-CVAE reference (``torch_scvae.py`` beside this script; its rows are skipped when torch is not installed).
 
 ``python experiments/bench_speed.py [--source DIR] [--results DIR] [--reps N] [--quick]``
-
-Rows (medians of ``--reps`` timed calls, every call blocked on its result):
-
-* S-CVAE training step -- paper widths, batch 32, a 50-frame transition (L = 51), forward + backward +
-  AdamW update of generators and discriminators -- in frames/s (32 x 50 frames per step), for JAX (the
-  jitted, buffer-donating step that ``run_training`` uses) and for ``experiments/torch_scvae.py`` (PyTorch
-  eager, same layer sizes and batch; the row is skipped when torch is absent).
-* S-CVAE inference: 10 diverse 50-frame transitions of one keyframe pair in one vmapped call (ms), and the
-  batched throughput (transitions/s) for 64 pairs x 10 samples.
-* CAE inference (paper widths) on a 1927-frame sequence, ms per frame (paper: 0.3 ms/frame on a GPU).
-* Interaction network, one 10-frame autoregressive step for both characters with the refiner, ms.
-* Compile time of each jitted function: cold (persistent cache off) and from the persistent cache.
-* Achieved FLOP/s of the S-CVAE step: matmul FLOPs of its jaxpr (scan bodies times their length, see
-  :mod:`inbetween_jax.profiling`) over its median time, against the measured float32 matmul peak.
-
-All inputs are real motion from the source (embedded CMU by default); the networks have random weights
-(speed does not depend on them).  Writes ``speed.md`` / ``speed.json`` under ``--results``.
 """
 from __future__ import annotations
 
-import dataclasses
-import json
+import argparse
 import os
-import platform
 import sys
-import tempfile
-import time
-
-import numpy as np
-
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
-def _compile_pair(jitted, *args):
-    """(cold seconds with the persistent cache off, seconds when served from a fresh persistent cache)."""
-    import jax
-
-    from inbetween_jax.profiling import compile_seconds
-    jax.config.update("jax_enable_compilation_cache", False)
-    jax.clear_caches()
-    cold = compile_seconds(jitted, *args)
-    jax.config.update("jax_enable_compilation_cache", True)
-    jax.clear_caches()
-    compile_seconds(jitted, *args)          # writes the entry
-    jax.clear_caches()
-    cached = compile_seconds(jitted, *args)
-    return cold, cached
-
-
-def _train_step_row(variant, win, data, stats, reps, batch=32, n_trans=50):
-    """JAX and PyTorch-eager S-CVAE training steps of one width on the same real batch."""
-    import jax
-    import jax.numpy as jnp
-
-    from inbetween_jax.configs.scvae import get_config
-    from inbetween_jax.models import scvae_train
-    from inbetween_jax.profiling import matmul_flops, median_ms, time_calls
-    from inbetween_jax.train.loop import make_step_fn, strongly_typed
-
-    length = n_trans + 1
-    cfg = get_config(variant)
-    cfg = dataclasses.replace(cfg, train=dataclasses.replace(cfg.train, trans_max=n_trans))
-    j = data.q.shape[2]
-    rng = np.random.default_rng(0)
-    idx = rng.integers(0, len(data), batch)
-    starts = rng.integers(0, data.q.shape[1] - length, batch)
-    np_batch = scvae_train.make_batch(data, idx, starts, length, length)
-    step_fn = scvae_train.make_train_step(cfg, data.parents, length)
-    init_fn = scvae_train.make_init_fn(cfg, stats, j)
-    jit_step = make_step_fn(step_fn, jax.random.key(1))
-    state = jax.tree.map(strongly_typed, init_fn(jax.random.key(0)))
-    dev_batch = jax.tree.map(jnp.asarray, np_batch)
-    i0 = np.int32(0)
-    out = {"variant": variant, "batch": batch, "n_trans": n_trans,
-           "gen_params": int(sum(x.size for x in jax.tree.leaves(state["params"])))}
-    out["compile_train"] = _compile_pair(jit_step, state, dev_batch, i0)
-    flops = matmul_flops(lambda s, b: step_fn(s, b, jax.random.key(0)), state, dev_batch)
-    holder = {"s": state}
-
-    def run_step():
-        holder["s"], m = jit_step(holder["s"], dev_batch, i0)
-        return m["loss"]
-
-    out["jax_step_ms"] = median_ms(time_calls(run_step, reps=reps, warmup=2))
-    out["jax_frames_s"] = batch * n_trans / (out["jax_step_ms"] / 1e3)
-    out["step_gflop"] = flops / 1e9
-    out["jax_gflops"] = flops / (out["jax_step_ms"] / 1e3) / 1e9
-    try:
-        sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-        import torch_scvae
-        avail = torch_scvae.available()
-    except ImportError:
-        avail = False
-    if avail:
-        tstep = torch_scvae.make_step(cfg, j, data.parents, stats, np_batch, length, seed=0)
-        out["torch_step_ms"] = median_ms(time_calls(tstep, reps=max(3, reps // 2), warmup=1))
-        out["torch_frames_s"] = batch * n_trans / (out["torch_step_ms"] / 1e3)
-        out["torch_threads"] = int(__import__("torch").get_num_threads())
-    return out, cfg, holder["s"]
-
-
-def scvae_rows(source, reps, quick, widths=("paper", "cpu")):
-    import jax
-    import jax.numpy as jnp
-
-    from inbetween_jax.data import load_dataset
-    from inbetween_jax.models import scvae, scvae_train
-    from inbetween_jax.profiling import matmul_flops, median_ms, time_calls
-
-    n_trans = 50
-    length = n_trans + 1
-    win = load_dataset(source, "benchmark")          # 65-frame windows: room for L = 51
-    data = scvae_train.TrainData.from_windows(win)
-    stats = scvae_train.compute_stats(win)
-    rows = {}
-    for variant in widths:
-        rows[variant], cfg_v, state_v = _train_step_row(variant, win, data, stats, reps)
-        if variant == widths[0]:
-            cfg, state = cfg_v, state_v
-    out = dict(rows[widths[0]], num_joints=int(data.q.shape[2]), widths=rows)
-    # inference: one pair x 10 samples, and 64 pairs x 10 samples
-    params, st = state["params"], state["stats"]
-    sample = jax.jit(lambda p, st, s, t, k: scvae.sample(p, cfg.model, st, s, t, length, k, length)["out"])
-
-    def keyframes(b):
-        k0, k1 = 0, length
-        pick = lambda x, f: jnp.asarray(x[:b, f])
-        return ({"q": pick(win.local_quats, k0), "r": pick(win.root_pos, k0), "c": pick(win.contacts, k0)},
-                {"q": pick(win.local_quats, k1), "r": pick(win.root_pos, k1), "c": pick(win.contacts, k1)})
-
-    keys = jax.random.split(jax.random.key(2), 10)
-    s1, t1 = keyframes(1)
-    out["compile_infer"] = _compile_pair(sample, params, st, s1, t1, keys)
-    out["infer_10_gflop"] = matmul_flops(lambda p: sample(p, st, s1, t1, keys), params) / 1e9
-    out["infer_10_ms"] = median_ms(time_calls(lambda: sample(params, st, s1, t1, keys), reps=reps * 2, warmup=2))
-    nb = 16 if quick else 64
-    sb, tb = keyframes(min(nb, len(win)))
-    tb_ms = median_ms(time_calls(lambda: sample(params, st, sb, tb, keys), reps=max(3, reps // 2), warmup=1))
-    out["infer_batch"] = int(sb["q"].shape[0]) * 10
-    out["infer_transitions_s"] = out["infer_batch"] / (tb_ms / 1e3)
-    return out
-
-
-def cae_rows(source, reps, quick):
-    import jax
-    import jax.numpy as jnp
-    from flax import nnx
-
-    from inbetween_jax.data import load_motions
-    from inbetween_jax.models import cae
-    from inbetween_jax.models.cae_data import motion_features
-    from inbetween_jax.profiling import median_ms, time_calls
-
-    frames = 1927
-    motions = load_motions(source, "train") + load_motions(source, "test")
-    feats = np.concatenate([motion_features(m).features for m in motions])
-    x = np.tile(feats, (int(np.ceil(frames / len(feats))), 1))[:frames]          # real frames, repeated if short
-    x = ((x - x.mean(0)) / (x.std(0) + 1e-3)).T[None].astype(np.float32)      # (1, D, 1927)
-    model = cae.make_model("cae", x.shape[1])
-    gdef, params = nnx.split(model)
-    fwd = jax.jit(lambda p, v: nnx.merge(gdef, p)(v))
-    xj = jnp.asarray(x)
-    out = {"frames": frames, "rows": int(x.shape[1]), "params": int(sum(a.size for a in jax.tree.leaves(params)))}
-    out["compile"] = _compile_pair(fwd, params, xj)
-    ms = median_ms(time_calls(lambda: fwd(params, xj), reps=reps, warmup=2))
-    out["ms"], out["ms_per_frame"] = ms, ms / frames
-    return out
-
-
-def interaction_rows(source, reps, quick):
-    import jax
-    import jax.numpy as jnp
-
-    from inbetween_jax.configs.interaction import get_config
-    from inbetween_jax.data import load_motions
-    from inbetween_jax.models import interaction as I
-    from inbetween_jax.models.interaction_data import (_forward_axis, keyframe_sample, motion_features,
-                                                       scale_positions)
-    from inbetween_jax.profiling import median_ms, time_calls
-
-    cfg = get_config("default")
-    motions = load_motions(source, "train")
-    m = max(motions, key=lambda mm: mm.num_frames)
-    feats = motion_features(m)                                    # (T, J, 9) real frames
-    fa = _forward_axis(m.skeleton)
-    t_in = cfg.data.n_input
-    pair = np.stack([feats, feats[::-1].copy()])                   # two real performances, same length
-    ks = keyframe_sample(pair, 0, t_in, min(len(feats) - 1, t_in + 30), fa)
-    ks = {k: np.asarray(v, np.float32)[None] for k, v in scale_positions(ks, 0.01).items()}
-    win, key, eye, zero = (jnp.asarray(ks[k]) for k in ("x", "keypose", "rel_R", "rel_t"))
-    nets, params = I.init_params(jax.random.key(0), feats.shape[1], cfg)
-    fa_j = jnp.asarray(fa, jnp.float32)
-
-    def one_step(p, w, kp, k):
-        o = I.generator_step(nets.gen, p["gen"], w, kp, eye, zero, k, cfg, fa_j)
-        return I.refine(nets.ref, p["ref"], o["pred"]) if cfg.model.refiner else o["pred"]
-
-    step = jax.jit(one_step)
-    k0 = jax.random.key(3)
-    out = {"num_joints": int(feats.shape[1]), "n_input": t_in, "n_pred": cfg.data.n_pred}
-    out["compile"] = _compile_pair(step, params, win, key, k0)
-    out["ms"] = median_ms(time_calls(lambda: step(params, win, key, k0), reps=reps * 2, warmup=2))
-    return out
-
-
-def _fmt_pair(p):
-    return f"{p[0]:.1f} / {p[1]:.1f}"
-
-
-def markdown(r) -> str:
-    s, c, i = r["scvae"], r["cae"], r["interaction"]
-    lines = [f"## Speed (JAX {r['jax']}, {r['device']}, {r['cpus']} cores; medians after warm-up, one process)", "",
-             f"Matmul peak (float32 1024^3, measured): {r['peak_gflops']:.1f} GFLOP/s.", "",
-             "| row | JAX | PyTorch eager | ratio | target |", "|---|---|---|---|---|"]
-    for name, w in s["widths"].items():
-        if "torch_step_ms" in w:
-            ratio = w["jax_frames_s"] / w["torch_frames_s"]
-            torch_cell = f"{w['torch_frames_s']:.0f} frames/s ({w['torch_step_ms']:.0f} ms)"
-            ratio_cell = f"{ratio:.2f}x"
-        else:
-            torch_cell, ratio_cell = "skipped (torch not installed)", "-"
-        lines.append(f"| S-CVAE train step, {name} widths ({w['gen_params'] / 1e6:.1f} M generator params), batch "
-                     f"{w['batch']}, {w['n_trans']}-frame transition | {w['jax_frames_s']:.0f} frames/s "
-                     f"({w['jax_step_ms']:.0f} ms) | {torch_cell} | {ratio_cell} | JAX >= 2x |")
-    bound = 1e3 * s["infer_10_gflop"] / r["peak_gflops"]
-    lines += [
-              f"| S-CVAE inference, 10 samples x 1 pair | {s['infer_10_ms']:.1f} ms ({s['infer_10_gflop']:.1f} GFLOP: "
-              f">= {bound:.0f} ms at the matmul peak) | | | <= 20 ms |",
-              f"| S-CVAE inference, {s['infer_batch']} transitions per call | {s['infer_transitions_s']:.0f} "
-              "transitions/s | | | |",
-              f"| CAE inference, {c['frames']} frames (paper widths) | {c['ms_per_frame']:.3f} ms/frame "
-              f"({c['ms']:.0f} ms) | | | < 0.3 ms/frame (paper, GPU) |",
-              f"| Interaction net, 10 frames x 2 characters (+ refiner) | {i['ms']:.2f} ms | | | <= 5 ms "
-              "(paper: 125 ms) |",
-              f"| S-CVAE step (paper widths) achieved FLOP/s | {s['jax_gflops']:.1f} GFLOP/s = "
-              f"{100 * s['jax_gflops'] / r['peak_gflops']:.0f} % of peak ({s['step_gflop']:.1f} GFLOP/step) | | | |",
-              "", "Compile times, s (cold with the persistent cache off / served from the persistent cache); "
-              "target <= 30 s:", "",
-              "| function | cold / cached |", "|---|---|",
-              *[f"| S-CVAE train step, {n} widths | {_fmt_pair(w['compile_train'])} |" for n, w in s["widths"].items()],
-              f"| S-CVAE vmapped rollout (10 samples) | {_fmt_pair(s['compile_infer'])} |",
-              f"| CAE forward, 1927 frames | {_fmt_pair(c['compile'])} |",
-              f"| Interaction step | {_fmt_pair(i['compile'])} |"]
-    if "torch_threads" in s:
-        lines += ["", f"PyTorch {r.get('torch', '?')} with {s['torch_threads']} threads."]
-    return "\n".join(lines) + "\n"
+def torch_reference():
+    """The ``torch_scvae`` module of this folder when torch is installed, else None."""
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    import torch_scvae
+    return torch_scvae if torch_scvae.available() else None
 
 
 def run(source=None, results_dir="results", reps=10, quick=False) -> dict:
-    import jax
-
-    from inbetween_jax.data import resolve_source
-    from inbetween_jax.profiling import matmul_peak_flops
-    from inbetween_jax.train.loop import enable_compilation_cache
-
-    enable_compilation_cache(tempfile.mkdtemp(prefix="jax-cache-bench-"))   # a fresh cache: honest cold numbers
-    src = resolve_source(source)
-    t0 = time.time()
-    r = {"source": src, "jax": jax.__version__, "device": str(jax.devices()[0].device_kind),
-         "platform": platform.processor() or platform.machine(), "cpus": os.cpu_count(), "reps": reps}
-    try:
-        import torch
-        r["torch"] = torch.__version__
-    except ImportError:
-        pass
-    r["peak_gflops"] = matmul_peak_flops() / 1e9
-    r["scvae"] = scvae_rows(src, reps, quick)
-    r["cae"] = cae_rows(src, reps, quick)
-    r["interaction"] = interaction_rows(src, reps, quick)
-    r["peak_gflops_after"] = matmul_peak_flops() / 1e9
-    r["wall_s"] = time.time() - t0
-    r["markdown"] = markdown(r)
-    os.makedirs(results_dir, exist_ok=True)
-    with open(os.path.join(results_dir, "speed.json"), "w") as fh:
-        json.dump(r, fh, indent=1, default=float)
-    with open(os.path.join(results_dir, "speed.md"), "w") as fh:
-        fh.write(r["markdown"])
-    print(r["markdown"])
-    return r
+    from inbetween_jax.evaluation import speed
+    return speed.run(source, results_dir, reps, quick, torch_ref=torch_reference())
 
 
-def main(argv=None):
-    import argparse
+def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--source", default=None)
     ap.add_argument("--results", default="results")
     ap.add_argument("--reps", type=int, default=10)
     ap.add_argument("--quick", action="store_true")
     a = ap.parse_args(argv)
-    run(a.source, a.results, a.reps, a.quick)
+    print(run(a.source, a.results, a.reps, a.quick)["markdown"])
     return 0
 
 
 if __name__ == "__main__":
-    sys.path.insert(0, ROOT)
     sys.exit(main())

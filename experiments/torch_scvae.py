@@ -6,13 +6,13 @@ no TorchScript, default threads: ``torch.get_num_threads()`` is 2 (one per core)
 for the timings.  With other processes busy on those cores, 2 threads ran the paper-size step 4-8x slower
 than 1 thread (``OMP_NUM_THREADS=1``): time on an idle CPU, or report the thread count with the numbers.
 
-Mirrored with the same matrix shapes, step count, batch and matmuls per step: ``scvae.rollout`` (forward and
-backward generators with separate parameters alternating over ``max_length // 2 + K`` steps, bi-directional
-aligning, Eq. 2 latent-interpolation gamma, two-stage encoder through the shared LSTM from the same carry,
-decoder LSTM + phase-gated blended-weight MoE, the phase network without gradient) and ``scvae.stitch``;
-``scvae_train.generator_loss`` (state / quaternion / velocity / contact terms, KL, FK positions via one FK
-call for both generators, stitching loss, teacher-forced phase loss, generator LSGAN term through the
-10- and 2-frame discriminators with detached weights); ``scvae_train.make_train_step`` (backward,
+Mirrored with the same matrix shapes, step count, batch and matmuls per step: ``models.scvae.model.rollout``
+(forward and backward generators with separate parameters alternating over ``max_length // 2 + K`` steps,
+bi-directional aligning, Eq. 2 latent-interpolation gamma, two-stage encoder through the shared LSTM from the
+same carry, decoder LSTM + phase-gated blended-weight MoE, the phase network without gradient) and
+``model.stitch``; ``models.scvae.train.generator_loss`` (state / quaternion / velocity / contact terms, KL, FK
+positions via one FK call for both generators, stitching loss, teacher-forced phase loss, generator LSGAN term
+through the 10- and 2-frame discriminators with detached weights); ``train.make_train_step`` (backward,
 global-norm clip + AdamW, then the discriminator loss on the detached stitched output, backward, clip + AdamW).
 
 Deliberate differences, none of which changes a matrix size:
@@ -62,7 +62,7 @@ def _lstm_p(d_in, hid):
 
 
 def _generator_p(m, num_joints: int) -> dict:
-    """Same tree and shapes as :func:`inbetween_jax.models.scvae.init_generator` (m: ModelConfig)."""
+    """Same tree and shapes as :func:`inbetween_jax.models.scvae.model.init_generator` (m: ModelConfig)."""
     st, e, o, lat2 = 4 * num_joints + 7, m.enc_hidden, m.enc_out, 2 * m.latent_dim
     enc = {"state": _mlp_p((st, e, e, o)), "offset": _mlp_p((st - 4, e, e, o)), "target": _mlp_p((st - 7, e, e, o)),
            "head_cur": _mlp_p((m.lstm_hidden, m.head_hidden, lat2)),
@@ -88,7 +88,7 @@ def leaves(tree) -> list:
 
 
 def param_count(cfg, num_joints: int) -> int:
-    """Generator parameters (forward + backward); equals the JAX ``scvae.init_params`` count. No torch needed."""
+    """Generator parameters (forward + backward); equals the JAX ``model.init_params`` count. No torch needed."""
     return 2 * sum(int(np.prod(shape)) for shape, _ in leaves(_generator_p(cfg.model, num_joints)))
 
 
@@ -116,8 +116,8 @@ def init_params(mcfg, num_joints: int, seed: int = 0) -> dict:
 
 # ----------------------------------------------------------------------------- building blocks
 def _mlp(layers, x, alpha=None):
-    """x (..., d_in) -> (..., d_out); ELU between layers (scvae_nn.mlp).  With alpha (B, E): the blended-weight
-    mixture of experts (scvae_nn.moe), x (B, d_in), layers W (E, d_in, d_out), b (E, d_out)."""
+    """x (..., d_in) -> (..., d_out); ELU between layers (layers.mlp).  With alpha (B, E): the blended-weight
+    mixture of experts (layers.moe), x (B, d_in), layers W (E, d_in, d_out), b (E, d_out)."""
     for i, l in enumerate(layers):
         if alpha is None:
             x = F.linear(x, l["w"].t(), l["b"])
@@ -302,7 +302,7 @@ class _Model:
 
     # ------------------------------------------------------------------------- losses
     def direction(self, pred, pos, kl, valid, gt):
-        """(state, kl, fk) scalars of one generator (as scvae_losses.direction_losses)."""
+        """(state, kl, fk) scalars of one generator (as models.scvae.losses.direction_losses)."""
         s, lc = pred["q"].shape[1], self.lc
         quat = (pred["q"] - gt["q"][:, 1:s + 1]).abs().mean((-1, -2))
         vel = ((pred["v"] - _velocity(gt["r"])[:, 1:s + 1]).abs() / self.v_std).mean(-1)
@@ -355,8 +355,8 @@ def make_step(cfg, num_joints: int, parents, stats: dict, batch: dict, length: i
               seed: int = 0) -> Callable[[], float]:
     """One-training-step closure on a fixed batch.
 
-    cfg: ``inbetween_jax.configs.scvae.Config``; stats: ``scvae_train.compute_stats`` (v_std (3,), off_std (3,),
-    pos_unit (), offsets (J, 3)); batch: ``scvae_train.make_batch`` output (q (B, T1, J, 4), r (B, T1, 3),
+    cfg: ``inbetween_jax.models.scvae.config.Config``; stats: ``features.compute_stats`` (v_std (3,), off_std (3,),
+    pos_unit (), offsets (J, 3)); batch: ``models.scvae.train.make_batch`` output (q (B, T1, J, 4), r (B, T1, 3),
     c (B, T1, 4), phase_f / phase_b (B, T1, 4), p (B, T1, J, 3)); length: L = frames between keyframes
     (T1 - 1 = max_length fixes the step count).  The closure returns the generator loss (before the update).
     """
@@ -375,7 +375,7 @@ def make_step(cfg, num_joints: int, parents, stats: dict, batch: dict, length: i
     t1 = bt["q"].shape[1]
     if not 1 <= length < t1:
         raise ValueError(f"length={length} needs 1 <= length <= max_length={t1 - 1}")
-    steps = (t1 - 1) // 2 + m.buffer_k                      # scvae.num_scan_steps(cfg.model, max_length)
+    steps = (t1 - 1) // 2 + m.buffer_k                      # model.num_scan_steps(cfg.model, max_length)
     noise = torch.Generator().manual_seed(seed + 1)
 
     def generator_loss():

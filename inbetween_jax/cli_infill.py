@@ -2,19 +2,14 @@
 routines on users' own BVH files.
 
 Every problem a user can cause raises :class:`~inbetween_jax.cli.UserError` (inputs given on the command line) or
-``ValueError`` (the Python API, e.g. :func:`scvae_infill` given non-unit quaternions) with a one-line message
-naming the file or array and the problem.  Nothing here writes files; :mod:`inbetween_jax.cli` does.
+``ValueError`` (the Python API) with a one-line message naming the file or array and the problem.  Nothing here
+writes files; :mod:`inbetween_jax.cli` does.  (S-CVAE: :mod:`inbetween_jax.models.scvae.infer`.)
 
-Canonical spaces.  S-CVAE keyframes are put in the space of the training windows with
-:func:`inbetween_jax.data.windows.canonicalize` (centred in XZ on the mean root of the two keyframes -- the
-training windows use the mean over the window, which the network never sees: it is only fed velocities and
-offsets between frames -- and turned so that the start keyframe faces +X), and the samples are mapped back
-with the inverse rigid motion.  Interaction inputs go to each character's keyframe space exactly as
+Canonical spaces.  Interaction inputs go to each character's keyframe space exactly as
 :func:`inbetween_jax.models.interaction_data.keyframe_sample` does for training samples.
 """
 from __future__ import annotations
 
-import functools
 import json
 import os
 
@@ -23,10 +18,7 @@ import numpy as np
 
 from inbetween_jax.cli import UserError
 from inbetween_jax.data import BVHError, read_bvh
-from inbetween_jax.data.features import foot_contacts
-from inbetween_jax.geometry import forward_kinematics, quat_fix_sign_np, quat_inv, quat_mul, quat_rotate
-
-SCVAE_MIN_FRAMES = 3          # L = frames + 1 >= 4 frames between keyframes (scvae.rollout)
+from inbetween_jax.geometry import quat_fix_sign_np, quat_inv, quat_mul
 
 
 # ----------------------------------------------------------------------------- inputs
@@ -121,10 +113,6 @@ def training_skeleton(source):
         return None
 
 
-def is_lafan1_skeleton(skel) -> bool:
-    return skel.names[0] == "Hips" and "LeftToe" in skel.names
-
-
 def checkpoint_step(ckpt_dir: str, sub: str = "checkpoints") -> tuple:
     """``(checkpoint folder, latest step)`` of a run folder (or of its ``checkpoints`` folder itself)."""
     from inbetween_jax.train import Checkpointer
@@ -156,115 +144,6 @@ def read_json(path: str, what: str) -> dict:
 def finite_or_fail(what: str, *arrays) -> None:
     if not all(np.all(np.isfinite(a)) for a in arrays):
         raise UserError(f"{what}: the model produced NaN or inf (is the checkpoint diverged?)")
-
-
-# ----------------------------------------------------------------------------- S-CVAE
-def scvae_checkpoint(ckpt_dir: str) -> dict:
-    """Config and metadata of an S-CVAE run folder without loading its weights."""
-    from inbetween_jax.configs.scvae import config_from_dict
-    from inbetween_jax.data import datasets, lafan1
-    from inbetween_jax.train import Checkpointer
-    folder, step = checkpoint_step(ckpt_dir)
-    run_dir = os.path.dirname(folder) if os.path.basename(os.path.normpath(folder)) == "checkpoints" else ckpt_dir
-    meta = {}
-    if os.path.exists(os.path.join(run_dir, "run.json")):
-        meta = read_json(os.path.join(run_dir, "run.json"), "S-CVAE run metadata")
-    ck = Checkpointer(folder)
-    try:
-        extra = ck.restore_extra(step)
-    finally:
-        ck.close()
-    if "config" not in extra or "model" not in extra["config"]:
-        raise UserError(f"{ckpt_dir}: checkpoint {step} holds no S-CVAE config (is this an S-CVAE run folder?)")
-    try:
-        cfg = config_from_dict(extra["config"])
-    except TypeError as e:
-        raise UserError(f"{ckpt_dir}: checkpoint {step} holds no S-CVAE config ({e})") from None
-    source = meta.get("source")
-    lafan = bool(source) and datasets.is_lafan1(source)
-    return {"cfg": cfg, "step": step, "folder": folder, "num_joints": meta.get("num_joints"), "source": source,
-            "skeleton": training_skeleton(source) if source else None, "lafan1": lafan,
-            "velfactor": lafan1.CONTACT_VELFACTOR if lafan else datasets.GENERIC_CONTACT_VELFACTOR}
-
-
-def scvae_frame_range(cfg) -> tuple:
-    """Transition lengths (generated frames between the keyframes) the S-CVAE was trained for."""
-    return SCVAE_MIN_FRAMES, int(cfg.train.trans_max)
-
-
-def scvae_restore(info: dict, num_joints: int):
-    """Restore the train state (params, stats, ...) of :func:`scvae_checkpoint`'s run."""
-    from inbetween_jax.models.scvae_train import make_init_fn
-    from inbetween_jax.train import Checkpointer
-    shapes = {"v_std": np.zeros(3, np.float32), "off_std": np.zeros(3, np.float32), "pos_unit": np.float32(0),
-              "offsets": np.zeros((num_joints, 3), np.float32)}
-    ck = Checkpointer(info["folder"])
-    try:
-        return ck.restore(info["step"], jax.eval_shape(make_init_fn(info["cfg"], shapes, num_joints),
-                                                       jax.random.key(0)))
-    except (ValueError, KeyError, TypeError) as e:
-        raise UserError(f"{info['folder']}: checkpoint {info['step']} does not fit a {num_joints}-joint "
-                        f"S-CVAE ({str(e).splitlines()[0] if str(e) else type(e).__name__})") from None
-    finally:
-        ck.close()
-
-
-def keyframe_contacts(motion, frame: int, velfactor: float) -> np.ndarray:
-    """(4,) foot contacts of one frame, from its displacement to the next frame (previous for the last)."""
-    n = motion.num_frames
-    if n < 2:
-        return np.zeros(4, np.float32)
-    a, b = (frame, frame + 1) if frame + 1 < n else (frame - 1, frame)
-    _, gp = forward_kinematics(motion.local_quats[[a, b]], motion.local_pos[[a, b]], motion.skeleton.parents)
-    return foot_contacts(gp[:, list(motion.skeleton.foot_joints())], velfactor)[0]
-
-
-@functools.partial(jax.jit, static_argnames=("cfg", "max_length"))
-def _scvae_sample(params, stats, start, target, keys, cfg, max_length):
-    from inbetween_jax.models import scvae
-    out = scvae.sample(params, cfg, stats, start, target, max_length, keys, max_length)["out"]
-    return out["q"][:, 0], out["r"][:, 0]
-
-
-def scvae_infill(cfg, state, skeleton, start: dict, end: dict, frames: int, num_samples: int, seed: int = 0,
-                 forward_axis=None) -> dict:
-    """Sample ``num_samples`` transitions of ``frames`` frames between two world-space keyframes.
-
-    start / end: dicts with ``q`` (J, 4) unit local quaternions, ``r`` (3,) root position, ``c`` (4,) foot
-    contacts.  skeleton: the keyframes' skeleton (its offsets give the FK of the canonicalisation).
-    forward_axis: the root's local facing axis (default: inferred from ``skeleton``).
-    Returns ``q`` (S, frames + 2, J, 4) and ``r`` (S, frames + 2, 3) float64 in the keyframes' world space;
-    frame 0 is ``start`` and frame ``frames + 1`` is ``end``, both exactly as given.
-    """
-    import jax.numpy as jnp
-    from inbetween_jax.data.windows import canonicalize
-    lo, hi = scvae_frame_range(cfg)
-    if not lo <= frames <= hi:
-        raise ValueError(f"frames={frames}: this S-CVAE generates {lo}..{hi} frames between keyframes")
-    if num_samples < 1:
-        raise ValueError(f"num_samples={num_samples}: need at least one sample")
-    qs = check_unit_quats(start["q"], "start keyframe q")
-    qe = check_unit_quats(end["q"], "end keyframe q")
-    for name, key in (("start", start), ("end", end)):
-        r = np.asarray(key["r"], np.float64)
-        if r.shape != (3,) or not np.all(np.isfinite(r)):
-            raise ValueError(f"{name} keyframe r: expected 3 finite numbers, got {r!r}")
-    fa = np.asarray(skeleton.forward_axis() if forward_axis is None else forward_axis, np.float64)
-    roots = np.stack([start["r"], end["r"]]).astype(np.float64)
-    cq, cr = canonicalize(np.stack([qs, qe])[None], roots[None], skeleton, 1, fa)      # (1, 2, J, 4), (1, 2, 3)
-    yaw = quat_mul(qs[0], quat_inv(cq[0, 0, 0]))                                      # canonical -> world
-    shift = np.array([roots[:, 0].mean(), 0.0, roots[:, 2].mean()])
-    frame = lambda i, c: {"q": jnp.asarray(cq[:, i], jnp.float32), "r": jnp.asarray(cr[:, i], jnp.float32),  # noqa
-                          "c": jnp.asarray(np.asarray(c, np.float32)[None])}
-    keys = jax.random.split(jax.random.key(seed), num_samples)
-    q, r = jax.device_get(_scvae_sample(state["params"], state["stats"], frame(0, start["c"]), frame(1, end["c"]),
-                                        keys, cfg.model, frames + 1))
-    q, r = np.asarray(q, np.float64)[:, :frames + 2], np.asarray(r, np.float64)[:, :frames + 2]
-    q[:, :, 0] = quat_mul(np.broadcast_to(yaw, q[:, :, 0].shape), q[:, :, 0])
-    r = quat_rotate(np.broadcast_to(yaw, r.shape[:-1] + (4,)), r) + shift
-    q[:, 0], r[:, 0], q[:, -1], r[:, -1] = qs, roots[0], qe, roots[1]                 # exact keyframes
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    return {"q": quat_fix_sign_np(q, axis=1), "r": r}
 
 
 # ----------------------------------------------------------------------------- CAE

@@ -18,18 +18,19 @@ STEPS = 3
 CHILD = r"""
 import json, sys
 import jax, numpy as np
-from inbetween_jax.configs.scvae import get_config
 from inbetween_jax.data import load_dataset
-from inbetween_jax.models import scvae_train as T
+from inbetween_jax.models.scvae import train as T
+from inbetween_jax.models.scvae.config import get_config
+from inbetween_jax.models.scvae.features import TrainData, compute_stats
 from inbetween_jax.train import apply_overrides, make_mesh, run_training, shard_batch
 
 out, steps = sys.argv[1], int(sys.argv[2])
 cfg = apply_overrides(get_config("tiny"), ["train.batch_size=4"])
 windows = load_dataset(None, "train")
-data = T.TrainData.from_windows(windows)
-init_fn = jax.jit(T.make_init_fn(cfg, T.compute_stats(windows), data.q.shape[2]))  # compiled once, used twice
-step_fn = T.make_train_step(cfg, data.parents, cfg.train.trans_max + 1)
-batch_fn = T.batch_fn_factory(data, cfg.train)
+data = TrainData.from_windows(windows)
+init_fn = jax.jit(T.make_init_fn(cfg, compute_stats(windows), data.q.shape[2]))  # compiled once, used twice
+step_fn = T.make_train_step(cfg, data.parents, cfg.data.trans_max + 1)
+batch_fn = T.batch_fn_factory(data, cfg)
 mesh = make_mesh()
 res = {"device_count": jax.device_count(), "mesh_devices": int(mesh.size)}
 batch = shard_batch(batch_fn(0, jax.random.key(0)), mesh)

@@ -6,11 +6,13 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from inbetween_jax.configs.scvae import get_config
 from inbetween_jax.data import load_dataset
-from inbetween_jax.models import scvae, scvae_nn
-from inbetween_jax.models import scvae_train as T
-from inbetween_jax.models.scvae_phase import foot_phase, phase_labels
+from inbetween_jax.models.scvae import deferred_grads as D
+from inbetween_jax.models.scvae import layers as nn
+from inbetween_jax.models.scvae import model as M
+from inbetween_jax.models.scvae import train as T
+from inbetween_jax.models.scvae.config import get_config
+from inbetween_jax.models.scvae.features import TrainData, compute_stats, foot_phase, phase_labels
 
 CFG = get_config("tiny")
 MAXLEN = 11  # 10 transition frames
@@ -19,8 +21,8 @@ MAXLEN = 11  # 10 transition frames
 @pytest.fixture(scope="module")
 def setup():
     w = load_dataset(None, "train")
-    data = T.TrainData.from_windows(w.take(slice(0, 8)))
-    stats = T.compute_stats(w)
+    data = TrainData.from_windows(w.take(slice(0, 8)))
+    stats = compute_stats(w)
     state = jax.jit(T.make_init_fn(CFG, stats, data.q.shape[2]))(jax.random.key(0))
     batch = T.make_batch(data, np.arange(4), np.array([0, 3, 10, 20]), MAXLEN, MAXLEN)
     return data, state, batch
@@ -28,15 +30,15 @@ def setup():
 
 def test_gamma_schedule_eq2():
     h, k = 5, 2   # L = 10
-    g = np.asarray(scvae.gamma_schedule(jnp.arange(h + k + 1), h, k))
+    g = np.asarray(M.gamma_schedule(jnp.arange(h + k + 1), h, k))
     np.testing.assert_allclose(g, [0, .2, .4, .6, .8, 5 / 7, 6 / 7, 1.0], rtol=1e-6)
-    h2, k2 = scvae.split_sizes(31, 4)
+    h2, k2 = M.split_sizes(31, 4)
     assert (int(h2), int(k2)) == (15, 4)
-    assert int(scvae.split_sizes(6, 4)[1]) == 2  # buffer clipped to floor(L/2) - 1
+    assert int(M.split_sizes(6, 4)[1]) == 2  # buffer clipped to floor(L/2) - 1
 
 
 def test_tta_embedding_values():
-    e = np.asarray(scvae_nn.tta_embedding(jnp.array([0.0, 3.0]), 8, 10000.0))
+    e = np.asarray(nn.tta_embedding(jnp.array([0.0, 3.0]), 8, 10000.0))
     assert e.shape == (2, 8)
     np.testing.assert_allclose(e[0], [0, 1, 0, 1, 0, 1, 0, 1], atol=1e-7)
     np.testing.assert_allclose(e[1, :2], [np.sin(3.0), np.cos(3.0)], rtol=1e-6)
@@ -54,21 +56,23 @@ def test_phase_labels_square_wave():
 
 
 def test_progressive_schedule():
-    tc = dataclasses.replace(CFG.train, trans_start=5, trans_max=50, epochs_per_increment=2.0, batch_size=32)
+    cfg = dataclasses.replace(CFG, data=dataclasses.replace(CFG.data, trans_start=5, trans_max=50,
+                                                            epochs_per_increment=2.0),
+                              train=dataclasses.replace(CFG.train, batch_size=32))
     spe = 3200 // 32
-    assert [T.transition_length(s, tc, 3200) for s in (0, 2 * spe - 1, 2 * spe, 20 * spe, 10 ** 6)] == [5, 5, 6, 15, 50]
+    assert [T.transition_length(s, cfg, 3200) for s in (0, 2 * spe - 1, 2 * spe, 20 * spe, 10 ** 6)] == [5, 5, 6, 15, 50]
 
 
 def _rollout(cfg, state, batch, key):
     s, t, _, _ = T.split_batch(batch)
-    return scvae.rollout(state["params"], cfg.model, state["stats"], s, t, batch["length"], key, MAXLEN)
+    return M.rollout(state["params"], cfg.model, state["stats"], s, t, batch["length"], key, MAXLEN)
 
 
 def test_shapes_target_hit_and_diversity(setup):
     data, state, batch = setup
     j = data.q.shape[2]
     s, t, _, _ = T.split_batch(batch)
-    fn = jax.jit(lambda p, keys: scvae.sample(p, CFG.model, state["stats"], s, t, batch["length"], keys, MAXLEN))
+    fn = jax.jit(lambda p, keys: M.sample(p, CFG.model, state["stats"], s, t, batch["length"], keys, MAXLEN))
     res = fn(state["params"], jax.random.split(jax.random.key(1), 3))
     steps = MAXLEN // 2 + CFG.model.buffer_k
     assert res["fwd"]["q"].shape == (3, 4, steps, j, 4) and res["bwd"]["r"].shape == (3, 4, steps, 3)
@@ -128,7 +132,6 @@ def test_each_ablation_switch_changes_the_computation(setup):
 
 def test_packed_layers_equal_plain_layers():
     """The rollout's packed LSTM / shared-carry LSTM / packed MoE compute exactly what the plain layers do."""
-    from inbetween_jax.models import scvae_nn as nn
     f = nn.ParamFactory()
     tree = {"lstm": nn.init_lstm(f, 6, 5), "moe": nn.init_moe(f, (5, 7, 3), 4)}
     p = f.materialize(tree, jax.random.key(0))
@@ -159,11 +162,11 @@ def test_deferred_weight_gradients_equal_autodiff(setup, switch):
     params = jax.tree.map(jnp.asarray, _ablated_params(state["params"], switch)) if switch else state["params"]
     args = (state["disc"], cfg, state["stats"], batch, jax.random.key(5), data.parents, MAXLEN)
     plain = jax.grad(lambda p: T.generator_loss(p, *args)[0])(params)
-    taps = scvae.make_taps(params, cfg.model, batch["q"].shape[0], MAXLEN)
+    taps = D.make_taps(params, cfg.model, batch["q"].shape[0], MAXLEN)
     (_, (_, _, recs)), (g, g_taps) = jax.value_and_grad(
         lambda p, t: T.generator_loss(p, *args, t), argnums=(0, 1), has_aux=True)(params, taps)
     assert recs, "no matmul inputs were recorded"
-    total = scvae.add_deferred_weight_grads(g, recs, g_taps)
+    total = D.add_deferred_weight_grads(g, recs, g_taps)
     lstm_wx = total["fwd"]["dec"]["lstm"]["wx"]
     assert float(jnp.abs(lstm_wx).max()) > 0 and float(jnp.abs(g["fwd"]["dec"]["lstm"]["wx"]).max()) == 0
     for (path, a), b in zip(jax.tree_util.tree_leaves_with_path(plain), jax.tree.leaves(total)):

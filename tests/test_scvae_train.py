@@ -1,4 +1,5 @@
-"""S-CVAE training tests on real CMU windows: overfitting, determinism, resume after an interruption."""
+"""S-CVAE training tests on real CMU windows: overfitting, determinism, resume after an interruption, and the
+run-folder round trip (train_model -> load_run -> infer.load -> sampling / infill)."""
 import csv
 import os
 import signal
@@ -10,13 +11,14 @@ import jax
 import numpy as np
 import pytest
 
-from inbetween_jax.configs.scvae import get_config
 from inbetween_jax.data import load_dataset
-from inbetween_jax.models import scvae_train as T
+from inbetween_jax.models.scvae import train as T
+from inbetween_jax.models.scvae.config import get_config
+from inbetween_jax.models.scvae.features import TrainData, compute_stats
 from inbetween_jax.train import apply_overrides, run_training
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-CFG = apply_overrides(get_config("tiny"), ["train.lr=3e-3", "train.trans_start=10", "train.trans_max=10"])
+CFG = apply_overrides(get_config("tiny"), ["train.lr=3e-3", "data.trans_start=10", "data.trans_max=10"])
 STEPS = 200
 
 
@@ -24,10 +26,10 @@ STEPS = 200
 def pieces():
     everything = load_dataset(None, "train")
     windows = everything.take(slice(0, 4))
-    data = T.TrainData.from_windows(windows)
-    max_length = CFG.train.trans_max + 1
+    data = TrainData.from_windows(windows)
+    max_length = CFG.data.trans_max + 1
     fixed = T.make_batch(data, np.arange(4), np.array([0, 5, 10, 20]), max_length, max_length)  # 4 real windows
-    init_fn = T.make_init_fn(CFG, T.compute_stats(everything), data.q.shape[2])
+    init_fn = T.make_init_fn(CFG, compute_stats(everything), data.q.shape[2])
     step_fn = T.make_train_step(CFG, data.parents, max_length)
     return init_fn, step_fn, (lambda step, key: fixed)
 
@@ -85,23 +87,74 @@ def test_resume_continues_the_same_loss_curve(pieces, tmp_path):
     assert sorted(_csv_losses(str(tmp_path / "resumed"))) == [1, 2, 3, 4, 5, 6]
 
 
+TRAIN_CHILD = """
+import sys
+from inbetween_jax.runner import train_model
+train_model("scvae", "tiny", ["train.num_steps=12", "train.ckpt_every=4", "train.log_every=1",
+                              "data.trans_start=10", "data.trans_max=10"],
+            source="embedded", run_dir=sys.argv[1], progress=False, log=None)
+"""
+
+
 @pytest.mark.slow
-def test_sigkill_and_restart_of_the_cli_continues_the_curve(tmp_path):
-    """``experiments/train_scvae.py`` killed with SIGKILL after a checkpoint, restarted, matches a clean run."""
-    args = ["--source", "embedded", "--variant", "tiny", "train.num_steps=12", "train.ckpt_every=4",
-            "train.log_every=1", "train.trans_start=10", "train.trans_max=10"]
-    script = os.path.join(ROOT, "experiments", "train_scvae.py")
+def test_sigkill_and_restart_of_training_continues_the_curve(tmp_path):
+    """``runner.train_model`` killed with SIGKILL after a checkpoint, restarted, matches a clean run."""
     clean, killed = str(tmp_path / "clean"), str(tmp_path / "killed")
-    subprocess.run([sys.executable, script, "--run-dir", clean] + args, check=True, cwd=ROOT)
-    proc = subprocess.Popen([sys.executable, script, "--run-dir", killed] + args, cwd=ROOT)
+    cmd = [sys.executable, "-c", TRAIN_CHILD]
+    subprocess.run(cmd + [clean], check=True, cwd=ROOT)
+    proc = subprocess.Popen(cmd + [killed], cwd=ROOT)
     deadline = time.time() + 600
     while time.time() < deadline and not os.path.isdir(os.path.join(killed, "checkpoints", "4")):
         time.sleep(0.05)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     assert len(_csv_losses(killed)) < 12
-    subprocess.run([sys.executable, script, "--run-dir", killed] + args, check=True, cwd=ROOT)
+    subprocess.run(cmd + [killed], check=True, cwd=ROOT)
     a, b = _csv_losses(clean), _csv_losses(killed)
     assert sorted(b) == list(range(1, 13))
     for s in range(1, 13):
         assert a[s] == pytest.approx(b[s], rel=1e-5)
+
+
+def test_run_folder_round_trip_load_sample_and_infill(tmp_path):
+    """train_model writes a run folder; infer.load rebuilds the model from it alone (no training data) and
+    samples finite transitions of the right shape, on benchmark windows and between two BVH keyframes."""
+    import argparse
+
+    from inbetween_jax.data import read_bvh
+    from inbetween_jax.data.datasets import EMBEDDED_DIR
+    from inbetween_jax.models.scvae import infer
+    from inbetween_jax.models.spec import InfillResult
+    from inbetween_jax.runner import train_model
+    from inbetween_jax.train.run import load_run
+    run_dir = str(tmp_path / "run")
+    _, logged = train_model("scvae", "tiny", ["train.num_steps=2", "train.ckpt_every=2", "train.log_every=1"],
+                            source="embedded", run_dir=run_dir, progress=False, log=None)
+    assert [r["step"] for r in logged] == [1, 2] and all(np.isfinite(r["loss"]) for r in logged)
+    run = load_run(run_dir)
+    assert run.model == "scvae" and run.step == 2 and run.extra["num_joints"] == 21
+    assert set(run.stats) == {"v_std", "off_std", "pos_unit", "offsets"} and run.stats["offsets"].shape == (21, 3)
+    trained = infer.load(run)
+    assert trained.cfg == get_config("tiny") and trained.step == 2
+    # the restored statistics are the run's (not the zero restore target)
+    np.testing.assert_allclose(np.asarray(trained.stats["v_std"]), run.stats["v_std"], rtol=1e-6)
+    windows = load_dataset(None, "benchmark").take(slice(0, 3))
+    n_trans = 8
+    s = infer.sample_transitions(trained.cfg.model, trained.state, windows, 10, n_trans, num_samples=2)
+    assert s["q"].shape == (2, 3, n_trans, 21, 4) and s["r"].shape == (2, 3, n_trans, 3)
+    assert s["mid_f"].shape == (2, 3, 21, 3) and all(np.all(np.isfinite(v)) for v in s.values())
+    bvh = sorted(f for f in os.listdir(EMBEDDED_DIR) if f.endswith(".bvh"))[0]
+    path = os.path.join(EMBEDDED_DIR, bvh)
+    motion = read_bvh(path)
+    args = argparse.Namespace(start=f"{path}:0", end=f"{path}:30", frames=6, samples=2, seed=0)
+    res = infer.infill(args, run)
+    assert isinstance(res, InfillResult) and [name for name, _, _ in res.samples] == ["sample_00", "sample_01"]
+    for _, motions, _ in res.samples:
+        m = motions[0]
+        assert m.local_quats.shape == (8, 21, 4) and np.all(np.isfinite(m.local_quats))
+        np.testing.assert_allclose(m.local_quats[0], motion.local_quats[0], atol=1e-6)   # exact keyframes
+        np.testing.assert_allclose(m.root_pos[-1], motion.root_pos[30], atol=1e-6)
+    assert res.summary["step"] == 2 and res.summary["frames"] == 6
+    from inbetween_jax.errors import UserError
+    with pytest.raises(UserError, match="--frames 11"):
+        infer.infill(argparse.Namespace(**dict(vars(args), frames=11)), run)

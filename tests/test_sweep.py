@@ -9,26 +9,29 @@ import numpy as np
 import pytest
 
 from inbetween_jax.data import load_dataset
-from inbetween_jax.models import scvae_train as T
+from inbetween_jax.models.scvae import train as T
+from inbetween_jax.models.scvae.features import TrainData, compute_stats
 from inbetween_jax.train import enable_compilation_cache
+from inbetween_jax.train import sweep
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 FRAMES = 10   # the tiny preset's own transition length: the sweep's "full" row is get_config("tiny")
 
 
 @pytest.fixture(scope="module")
-def sweep():
-    spec = importlib.util.spec_from_file_location("sweep_scvae", os.path.join(ROOT, "experiments", "sweep_scvae.py"))
+def script():
+    """``experiments/sweep.py`` (a thin argparse front end of :mod:`inbetween_jax.train.sweep`)."""
+    spec = importlib.util.spec_from_file_location("sweep_script", os.path.join(ROOT, "experiments", "sweep.py"))
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
 
 
-def test_row_configs_turn_off_one_switch(sweep):
-    from inbetween_jax.configs.scvae import get_config
+def test_row_configs_turn_off_one_switch():
+    from inbetween_jax.models.scvae.config import get_config
     full = sweep.row_config("tiny", "full", FRAMES)
     assert full == get_config("tiny")
-    for row, (_, switch) in sweep.ROWS.items():
+    for row, (_, switch) in sweep.ABLATIONS["scvae"].items():
         m = sweep.row_config("tiny", row, FRAMES).model
         off = [f for f in ("bidirectional", "latent_interp", "aligning", "phase_moe", "encoder_lstm",
                            "discriminators", "stitch_loss") if not getattr(m, f)]
@@ -37,17 +40,18 @@ def test_row_configs_turn_off_one_switch(sweep):
         sweep.row_config("tiny", "no_such_row", FRAMES)
 
 
-def test_vmapped_seeds_match_single_seed_runs(sweep):
+def test_vmapped_seeds_match_single_seed_runs():
     enable_compilation_cache()
     cfg, seeds, steps = sweep.row_config("tiny", "full", FRAMES), [0, 1], 3
     windows = load_dataset(None, "train")
-    data, stats = T.TrainData.from_windows(windows), T.compute_stats(windows)
-    states, history, _ = sweep.train_seeds(cfg, data, stats, seeds, steps)
+    stats = compute_stats(windows)
+    data = TrainData.from_windows(windows, stats=stats)
+    states, history, _ = sweep.train_seeds(T.make_training(cfg, data), seeds, steps)
     assert jax.tree.leaves(states["params"])[0].shape[0] == len(seeds)
 
     init_fn = jax.jit(T.make_init_fn(cfg, stats, data.q.shape[2]))
-    step_fn = jax.jit(T.make_train_step(cfg, data.parents, cfg.train.trans_max + 1))   # one compile, both seeds
-    batch_fn = T.batch_fn_factory(data, cfg.train)
+    step_fn = jax.jit(T.make_train_step(cfg, data.parents, cfg.data.trans_max + 1))   # one compile, both seeds
+    batch_fn = T.batch_fn_factory(data, cfg)
     losses = []
     for n, seed in enumerate(seeds):   # the run_training recipe, one seed at a time, plain jitted step
         init_key, data_key, train_key = jax.random.split(jax.random.key(seed), 3)
@@ -64,9 +68,9 @@ def test_vmapped_seeds_match_single_seed_runs(sweep):
     assert losses[:steps] != losses[steps:], "two seeds gave the same run"
 
 
-def test_sweep_cli_writes_mean_std_table(sweep, tmp_path):
+def test_sweep_cli_writes_mean_std_table(script, tmp_path):
     rows = ["full", "no_d"]
-    assert sweep.main(["--rows", ",".join(rows), "--seeds", "2", "--steps", "2", "--frames", str(FRAMES),
+    assert script.main(["--rows", ",".join(rows), "--seeds", "2", "--steps", "2", "--frames", str(FRAMES),
                        "--samples", "2", "--results", str(tmp_path)]) == 0
     md = (tmp_path / "sweep_scvae.md").read_text()
     lines = {line.split("|")[1].strip(): line for line in md.splitlines() if line.startswith("| ")}
@@ -75,6 +79,14 @@ def test_sweep_cli_writes_mean_std_table(sweep, tmp_path):
     assert "Slerp" in md
     with open(tmp_path / "sweep_scvae.json") as f:
         res = json.load(f)
+    assert res["model"] == "scvae"
     assert [r["row"] for r in res["rows"]] == rows
     for r in res["rows"]:
         assert len(r["per_seed"]) == 2 and all(np.isfinite(m["L2P"]) for m in r["per_seed"])
+
+
+def test_sweep_cli_refuses_an_unknown_row_in_one_line(script, tmp_path, capsys):
+    assert script.main(["--rows", "full,no_such_row", "--results", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "no_such_row" in err
+    assert not os.listdir(tmp_path)

@@ -3,8 +3,8 @@ count equals the JAX model's, one training step returns a finite loss, 20 steps 
 loss and (slow) with JAX's weights and zero latent noise three training steps reproduce JAX's losses.
 torch is an optional (benchmark) dependency: without it the module is skipped."""
 import dataclasses
+import importlib.util
 import os
-import sys
 
 import jax
 import numpy as np
@@ -12,13 +12,17 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from inbetween_jax.configs.scvae import get_config  # noqa: E402
 from inbetween_jax.data import load_dataset  # noqa: E402
-from inbetween_jax.models import scvae  # noqa: E402
-from inbetween_jax.models import scvae_train as T  # noqa: E402
+from inbetween_jax.models.scvae import model as scvae  # noqa: E402
+from inbetween_jax.models.scvae import train as T  # noqa: E402
+from inbetween_jax.models.scvae.config import get_config  # noqa: E402
+from inbetween_jax.models.scvae.features import TrainData, compute_stats  # noqa: E402
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "experiments"))
-import torch_scvae  # noqa: E402
+_SPEC = importlib.util.spec_from_file_location(
+    "torch_scvae", os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "experiments",
+                                "torch_scvae.py"))
+torch_scvae = importlib.util.module_from_spec(_SPEC)
+_SPEC.loader.exec_module(torch_scvae)
 
 TINY = get_config("tiny")
 
@@ -52,10 +56,10 @@ def test_built_tensors_match_param_count():
 def step_inputs():
     """Tiny config, 4 real windows, L = max_length = trans_max + 1."""
     everything = load_dataset(None, "train")
-    data = T.TrainData.from_windows(everything.take(slice(0, 4)))
-    max_length = TINY.train.trans_max + 1
+    data = TrainData.from_windows(everything.take(slice(0, 4)))
+    max_length = TINY.data.trans_max + 1
     batch = T.make_batch(data, np.arange(4), np.array([0, 5, 10, 20]), max_length, max_length)
-    return data.q.shape[2], data.parents, T.compute_stats(everything), batch, max_length
+    return data.q.shape[2], data.parents, compute_stats(everything), batch, max_length
 
 
 @pytest.fixture()

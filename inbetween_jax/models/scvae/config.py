@@ -1,11 +1,20 @@
-"""S-CVAE configuration (paper sections 4.1 and 4.3), flax-examples style ``get_config()``.
+"""S-CVAE configuration (paper sections 4.1 and 4.3): ``Config(model, data, loss, train)``.
 
 Frozen dataclasses; override from the command line with ``inbetween_jax.train.apply_overrides``, e.g.
-``model.lstm_hidden=64 train.batch_size=8``.  ``get_config("tiny")`` is the small variant used by tests.
+``model.lstm_hidden=64 train.batch_size=8 data.trans_max=30``.  Presets: ``paper`` (sizes and weights of the
+paper), ``cpu`` (half widths, for long CPU runs; the default) and ``tiny`` (small widths, for tests).
+
+``model.deferred_wgrad`` is a speed switch only (the largest weight gradients as one matmul after the scan,
+see :mod:`inbetween_jax.models.scvae.deferred_grads`); it does not change the losses.
 """
 from __future__ import annotations
 
 import dataclasses
+
+from inbetween_jax.train.config import TrainConfig
+
+PRESETS = ("paper", "cpu", "tiny")
+DEFAULT_PRESET = "cpu"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -34,6 +43,18 @@ class ModelConfig:
     encoder_lstm: bool = True      # False: "w/o LSTM", MLP in place of the encoder LSTM
     discriminators: bool = True    # False: "w/o D"
     stitch_loss: bool = True       # False: "w/o SL"
+    # speed only (same losses): the largest weight gradients as one matmul after the scan
+    deferred_wgrad: bool = True
+
+
+@dataclasses.dataclass(frozen=True)
+class DataConfig:
+    """Progressive training (paper 4.1): the transition length (frames between the keyframes - 1) starts at
+    ``trans_start`` and grows by one frame every ``epochs_per_increment`` epochs (an epoch: ``N windows /
+    train.batch_size`` steps) up to ``trans_max``; ``trans_max + 1`` also fixes the rollout's static length."""
+    trans_start: int = 5
+    trans_max: int = 48            # 50-frame windows with one past frame allow at most 48 transition frames
+    epochs_per_increment: float = 2.0   # +1 frame every 2 epochs
 
 
 @dataclasses.dataclass(frozen=True)
@@ -49,55 +70,34 @@ class LossConfig:
     phase: float = 1.0             # phase-network regression loss (its own parameters only)
 
 
-@dataclasses.dataclass(frozen=True)
-class TrainConfig:
-    lr: float = 1e-4
-    b1: float = 0.5
-    b2: float = 0.9
-    weight_decay: float = 1e-5
-    batch_size: int = 32
-    grad_clip: float = 1.0
-    trans_start: int = 5           # progressive training: transition length (frames between keyframes - 1)
-    trans_max: int = 48            # 50-frame windows with one past frame allow at most 48 transition frames
-    epochs_per_increment: float = 2.0   # +1 frame every 2 epochs
-    num_steps: int = 20000
-    log_every: int = 50
-    ckpt_every: int = 500
-    seed: int = 0
-    deferred_wgrad: bool = True    # speed only: the largest weight gradients as one matmul after the scan
+_TRAIN = TrainConfig(num_steps=20000, batch_size=32, lr=1e-4, b1=0.5, b2=0.9, weight_decay=1e-5, grad_clip=1.0,
+                     log_every=50, ckpt_every=500, seed=0)
 
 
 @dataclasses.dataclass(frozen=True)
 class Config:
     model: ModelConfig = ModelConfig()
+    data: DataConfig = DataConfig()
     loss: LossConfig = LossConfig()
-    train: TrainConfig = TrainConfig()
+    train: TrainConfig = _TRAIN
 
 
-def get_config(variant: str = "paper") -> Config:
-    """``"paper"``: sizes and weights of the paper.  ``"tiny"``: small widths for tests.
-    ``"cpu"``: half widths, for long CPU runs."""
+def get_config(preset: str = DEFAULT_PRESET) -> Config:
+    """``"paper"``: sizes and weights of the paper.  ``"cpu"``: half widths, for long CPU runs.
+    ``"tiny"``: small widths and a fixed 10-frame transition, for tests."""
     cfg = Config()
-    if variant == "paper":
+    if preset == "paper":
         return cfg
-    if variant == "tiny":
-        return dataclasses.replace(cfg, model=dataclasses.replace(
-            cfg.model, enc_hidden=32, enc_out=16, lstm_hidden=32, head_hidden=32, latent_dim=4,
-            dec_lstm_hidden=32, expert_hidden=(32, 16), gating_hidden=(8, 8), phase_hidden=16,
-            disc_hidden=(16, 16), buffer_k=2),
-            train=dataclasses.replace(cfg.train, batch_size=4, trans_start=10, trans_max=10, log_every=5,
-                                      ckpt_every=5, lr=1e-3))
-    if variant == "cpu":
+    if preset == "tiny":
+        return dataclasses.replace(
+            cfg,
+            model=dataclasses.replace(cfg.model, enc_hidden=32, enc_out=16, lstm_hidden=32, head_hidden=32,
+                                      latent_dim=4, dec_lstm_hidden=32, expert_hidden=(32, 16), gating_hidden=(8, 8),
+                                      phase_hidden=16, disc_hidden=(16, 16), buffer_k=2),
+            data=dataclasses.replace(cfg.data, trans_start=10, trans_max=10),
+            train=dataclasses.replace(cfg.train, batch_size=4, log_every=5, ckpt_every=5, lr=1e-3))
+    if preset == "cpu":
         return dataclasses.replace(cfg, model=dataclasses.replace(
             cfg.model, enc_hidden=256, enc_out=128, lstm_hidden=384, head_hidden=384,
             dec_lstm_hidden=384, expert_hidden=(256, 128), phase_hidden=128, disc_hidden=(256, 128)))
-    raise ValueError(f"unknown S-CVAE config variant {variant!r}; choose paper, tiny or cpu")
-
-
-def config_from_dict(d: dict) -> Config:
-    """Inverse of ``inbetween_jax.train.config_to_dict`` for this config (lists become tuples)."""
-    def build(cls, sub):
-        kw = {k: tuple(v) if isinstance(v, list) else v for k, v in (sub or {}).items()}
-        return cls(**kw)
-    return Config(model=build(ModelConfig, d.get("model")), loss=build(LossConfig, d.get("loss")),
-                  train=build(TrainConfig, d.get("train")))
+    raise ValueError(f"unknown S-CVAE preset {preset!r}; choose {', '.join(PRESETS)}")

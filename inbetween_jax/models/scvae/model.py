@@ -1,33 +1,38 @@
-"""S-CVAE: bi-directional stitching CVAE for motion in-betweening (networks and generator rollout).
+"""S-CVAE: bi-directional stitching CVAE for motion in-betweening (networks, phase network, generator rollout).
 
-A *frame* is a dict of arrays for a batch B on a skeleton of J joints::
+Frames are dicts of arrays (see :mod:`inbetween_jax.models.scvae.features`); ``stats`` come from
+:func:`~inbetween_jax.models.scvae.features.compute_stats`.  Generators are pure functions of a param pytree
+(nested dicts of arrays, :func:`init_params`); the whole bi-directional rollout is one ``lax.scan``
+(:func:`rollout`), and :func:`sample` draws N transitions for one batch of keyframe pairs with ``vmap`` over
+PRNG keys.
 
-    q (B, J, 4) local quaternions (w, x, y, z)    r (B, 3) global root position
-    v (B, 3)   root velocity in the generator's own time direction (r_t - r_{t-1})
-    c (B, 4)   foot contacts in [0, 1]             phase (B, 4) local-phase vector (2 feet x (sin, cos))
-
-``stats`` (dict of arrays, see :func:`inbetween_jax.models.scvae_train.compute_stats`) holds the feature
-scales and the skeleton's bone offsets.  Generators are pure functions of a param pytree; the whole
-bi-directional rollout is one ``lax.scan`` (:func:`rollout`), and :func:`sample` draws N transitions for
-one batch of keyframe pairs with ``vmap`` over PRNG keys.
+Phase prediction (paper 3.3).  A phase network (MLP) maps (local quaternions, normalised root velocity,
+contacts, current phase vector) to a phase *update*; phase_{t+1} = phase_t + update, autoregressively as in
+[36].  The keyframe's phase is predicted from the keyframe with a zero phase input.  The network is trained by
+its own L1 regression loss on the labels (teacher forcing, :func:`inbetween_jax.models.scvae.losses.phase_loss`)
+and receives no gradient from the generator losses, which matches the paper's pre-trained phase network while
+training in the same step.
 """
 from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
 
-from inbetween_jax.data.features import offsets_to_target
 from inbetween_jax.geometry import quat_normalize
-from inbetween_jax.models import scvae_nn as nn
-from inbetween_jax.models.scvae_phase import init_phase_net, phase_step
+from inbetween_jax.models.scvae import layers as nn
+from inbetween_jax.models.scvae.features import (PHASE_DIM, align_sign, dims, offset_features, reverse_time,
+                                                 state_features)
 
-PHASE_DIM = 4
+
+def init_phase_net(f: nn.ParamFactory, d_in: int, hidden: int) -> list:
+    """MLP (state features + 4 phase) -> hidden -> hidden -> 4 phase update."""
+    return nn.init_mlp(f, (d_in, hidden, hidden, PHASE_DIM))
 
 
-def dims(num_joints: int) -> dict:
-    """Feature sizes: state 4J+3+4 (95 on LaFAN1), offset 3+4J (91), target 4J (88), decoder output 4J+3+4."""
-    return {"state": 4 * num_joints + 7, "offset": 4 * num_joints + 3, "target": 4 * num_joints,
-            "out": 4 * num_joints + 7}
+def phase_step(params: list, frame: dict, stats: dict) -> jnp.ndarray:
+    """phase_{t+1} = phase_t + net([state_t, phase_t]).  frame needs q, v, c, phase (B, ...); returns (B, 4)."""
+    x = jnp.concatenate([state_features(frame, stats), frame["phase"]], -1)
+    return frame["phase"] + nn.mlp(params, x)
 
 
 def init_generator(f: nn.ParamFactory, cfg, num_joints: int) -> dict:
@@ -62,30 +67,6 @@ def init_carry(cfg, batch: int):
     """Recurrent state of one generator: encoder and decoder LSTM carries."""
     return {"enc": nn.lstm_zero_carry((batch,), cfg.lstm_hidden),
             "dec": nn.lstm_zero_carry((batch,), cfg.dec_lstm_hidden)}
-
-
-# ----------------------------------------------------------------------------- features
-def state_features(f: dict, stats: dict):
-    """(B, 4J+7): local quats, normalised root velocity, contacts."""
-    b = f["q"].shape[0]
-    return jnp.concatenate([f["q"].reshape(b, -1), f["v"] / stats["v_std"], f["c"]], axis=-1)
-
-
-def align_sign(q, ref):
-    """Flip quaternions q (..., 4) into the hemisphere of ref (..., 4)."""
-    return jnp.where(jnp.sum(q * ref, -1, keepdims=True) < 0, -q, q)
-
-
-def offset_features(cur: dict, tgt_q, tgt_r, stats: dict):
-    """(B, 3+4J): root-position offset (scaled) and element-wise local-quaternion offset to the target."""
-    b = cur["q"].shape[0]
-    off_r, off_q = offsets_to_target(cur["r"], cur["q"], tgt_r, tgt_q)
-    return jnp.concatenate([off_r / stats["off_std"], off_q.reshape(b, -1)], axis=-1)
-
-
-def reverse_time(f: dict) -> dict:
-    """A frame as seen by the generator running the other way in time (velocity negated)."""
-    return dict(f, v=-f["v"])
 
 
 # ----------------------------------------------------------------------------- one generator step
@@ -162,7 +143,7 @@ def generator_step(p: dict, cfg, carry, cur: dict, tgt: dict, tta, gamma, key, s
     enc_carry, z, kl, s_emb, t_emb = encode(p["enc"], cfg, carry["enc"], cur, tgt, tta, gamma, key, stats,
                                             taps, rec)
     dec_carry, nxt = decode(p["dec"], cfg, carry["dec"], z, s_emb, t_emb, cur, stats, taps, rec)
-    nxt["phase"] = phase_step(jax.lax.stop_gradient(p["phase"]), cur, stats, state_features)
+    nxt["phase"] = phase_step(jax.lax.stop_gradient(p["phase"]), cur, stats)
     return {"enc": enc_carry, "dec": dec_carry}, nxt, kl
 
 
@@ -204,9 +185,10 @@ def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, k
       ``fwd`` / ``bwd``: frames (B, S, ...) in generation order (fwd step m = frame m+1, bwd step m =
       frame L-1-m), ``kl_fwd`` / ``kl_bwd`` (B, S), ``valid`` (S,) bool, ``out``: stitched frames
       (B, max_length+1, ...) for times 0..max_length (times > L repeat the target), ``h``, ``k``.
-    taps: optional ``{"fwd": {name: (S, rows, cols) zeros}, "bwd": ...}`` from :func:`make_taps`: the
-    largest matmuls then leave their weight gradient to the caller (``nn.tapped_matmul``) and the result
-    also holds ``rec_fwd`` / ``rec_bwd``: their inputs per step, {name: (S, rows, d_in)}.
+    taps: optional ``{"fwd": {name: (S, rows, cols) zeros}, "bwd": ...}`` from
+    :func:`~inbetween_jax.models.scvae.deferred_grads.make_taps`: the largest matmuls then leave their weight
+    gradient to the caller and the result also holds ``rec_fwd`` / ``rec_bwd``: their inputs per step,
+    {name: (S, rows, d_in)}.
     """
     steps = num_scan_steps(cfg, max_length)
     b = start["q"].shape[0]
@@ -216,11 +198,11 @@ def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, k
     s0 = dict(start, v=zero_v)
     t0 = dict(target, v=zero_v)
     s0["phase"] = phase_step(jax.lax.stop_gradient(params["fwd"]["phase"]), dict(s0, phase=jnp.zeros((b, PHASE_DIM))),
-                             stats, state_features)
+                             stats)
     carry_f = init_carry(cfg, b)
     if cfg.bidirectional:
         t0["phase"] = phase_step(jax.lax.stop_gradient(params["bwd"]["phase"]),
-                                 dict(t0, phase=jnp.zeros((b, PHASE_DIM))), stats, state_features)
+                                 dict(t0, phase=jnp.zeros((b, PHASE_DIM))), stats)
         carry_b = init_carry(cfg, b)
     else:
         t0["phase"] = jnp.zeros((b, PHASE_DIM))
@@ -262,51 +244,11 @@ def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, k
     res = dict(ys, h=h, k=k, **{f"rec_{g}": r for g, r in recs.items()})
     if cfg.bidirectional:
         res["valid"] = (m < h + k) & (m + 1 <= length - 1)
-        res["out"] = stitch(start, target, ys["fwd"], reverse_frames(ys["bwd"]), length, h, k, max_length)
+        res["out"] = stitch(start, target, ys["fwd"], reverse_time(ys["bwd"]), length, h, k, max_length)
     else:
         res["valid"] = m < length - 1
         res["out"] = forward_only(start, target, ys["fwd"], length, max_length)
     return res
-
-
-def make_taps(params: dict, cfg, batch: int, max_length: int) -> dict:
-    """Zero taps for :func:`rollout` (deferred weight gradients of the encoder LSTM, the packed decoder
-    LSTM and the first expert layer of each generator): {generator: {name: (S, rows, cols)}}."""
-    steps = num_scan_steps(cfg, max_length)
-    out = {}
-    for name, g in params.items():
-        four_h = g["dec"]["lstm"]["b"].shape[0]
-        e, o = g["dec"]["experts"][0]["b"].shape
-        t = {"dec_w": jnp.zeros((steps, batch, four_h)), "moe0": jnp.zeros((steps, batch, e * o))}
-        if cfg.encoder_lstm:
-            four_he = g["enc"]["lstm"]["b"].shape[0]
-            t.update(enc_wh=jnp.zeros((steps, batch, four_he)), enc_wx=jnp.zeros((steps, 2 * batch, four_he)))
-        out[name] = t
-    return out
-
-
-def add_deferred_weight_grads(grads: dict, recs: dict, tap_grads: dict) -> dict:
-    """Autodiff ``grads`` (zero at the tapped weights) plus the tapped matmuls' weight gradients,
-    ``sum_t x_t^T g_t`` as one matmul each, mapped back to the unpacked parameter layout.
-    recs: {generator: {name: (S, rows, d_in)}}; tap_grads like :func:`make_taps`.  Only the tapped leaves
-    change; returns a new pytree shaped like ``grads``."""
-    out = jax.tree.map(lambda x: x, grads)     # new containers, same leaves
-    for name, rec in recs.items():
-        g = tap_grads[name]
-        dw = {k: rec[k].reshape(-1, rec[k].shape[-1]).T @ g[k].reshape(-1, g[k].shape[-1]) for k in rec}
-        lstm, expert = out[name]["dec"]["lstm"], out[name]["dec"]["experts"][0]
-        d_x = lstm["wx"].shape[0]
-        e, i, o = expert["w"].shape
-        lstm["wx"], lstm["wh"] = lstm["wx"] + dw["dec_w"][:d_x], lstm["wh"] + dw["dec_w"][d_x:]
-        expert["w"] = expert["w"] + jnp.transpose(dw["moe0"].reshape(i, e, o), (1, 0, 2))
-        if "enc_wx" in dw:
-            enc = out[name]["enc"]["lstm"]
-            enc["wx"], enc["wh"] = enc["wx"] + dw["enc_wx"], enc["wh"] + dw["enc_wh"]
-    return out
-
-
-def reverse_frames(fr: dict) -> dict:
-    return dict(fr, v=-fr["v"])
 
 
 def _gather_time(x, idx):

@@ -1,68 +1,82 @@
-"""S-CVAE training: statistics, batches with progressive transition length, the pure train step and
-``train()`` on top of :func:`inbetween_jax.train.run_training`.
+"""S-CVAE training: data loading, batches with progressive transition length, the pure train step and
+:func:`make_training` for :func:`inbetween_jax.runner.train_model`.
 
 Batch (dict of arrays; T1 = max_length + 1 frames in forward time, frames after ``length`` repeat the
 target keyframe): q (B, T1, J, 4), r (B, T1, 3), c (B, T1, 4), phase_f / phase_b (B, T1, 4) local-phase
-labels of the forward / reversed motion (both stored in forward time), length () int32 = frames between
-the two keyframes (L = transition length + 1).
+labels of the forward / reversed motion (both stored in forward time), p (B, T1, J, 3) global positions,
+length () int32 = frames between the two keyframes (L = transition length + 1).
+
+Train state: ``{"params": {"fwd", "bwd"}, "disc": {"long", "short"}, "opt_g", "opt_d", "stats"}`` (plain
+nested dicts of arrays; ``stats`` is :func:`~inbetween_jax.models.scvae.features.compute_stats`).
 """
 from __future__ import annotations
 
-import dataclasses
-import math
+import os
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
 
-from inbetween_jax.data import l2p_stats
-from inbetween_jax.models import scvae
-from inbetween_jax.models import scvae_losses as L
-from inbetween_jax.models.scvae_phase import phase_labels
+from inbetween_jax.models.scvae import losses as L
+from inbetween_jax.models.scvae import model as M
+from inbetween_jax.models.scvae.deferred_grads import add_deferred_weight_grads, make_taps
+from inbetween_jax.models.scvae.features import TrainData, compute_stats, dims
+from inbetween_jax.models.spec import Training
+from inbetween_jax.train.optim import make_optimizer
+
+__all__ = ["load_data", "make_training", "make_init_fn", "make_train_step", "batch_fn_factory", "make_batch",
+           "split_batch", "generator_loss", "transition_length"]
 
 
-def compute_stats(windows) -> dict:
-    """Feature scales from training windows (MotionWindows): v_std (3,), off_std (3,), pos_unit (),
-    offsets (J, 3)."""
-    r = windows.root_pos.astype(np.float64)
-    v = r[:, 1:] - r[:, :-1]
-    off = r[:, None, :, :] - r[:, :, None, :]
-    _, gp = windows.global_pose()
-    _, x_std = l2p_stats(gp)
-    return {"v_std": np.maximum(v.reshape(-1, 3).std(0), 1e-2).astype(np.float32),
-            "off_std": np.maximum(np.sqrt((off ** 2).reshape(-1, 3).mean(0)), 1.0).astype(np.float32),
-            "pos_unit": np.float32(x_std.mean()),
-            "offsets": windows.offsets.astype(np.float32)}
+def load_data(cfg, source: str, split: str = "train") -> TrainData:
+    """Windows of ``split`` of ``source`` (a LaFAN1 / BVH folder or ``"embedded"``) with phase labels and
+    feature statistics (``data.stats``).
+
+    Raises:
+        ValueError: the windows are too short for ``data.trans_max`` (one line naming the source).
+    """
+    from inbetween_jax.data import load_dataset
+    from inbetween_jax.data.datasets import is_lafan1, split_files, window_settings
+    windows = load_dataset(source, split)
+    if cfg.data.trans_max + 2 > windows.window:
+        raise ValueError(f"{source}: {windows.window}-frame {split} windows are too short for "
+                         f"data.trans_max={cfg.data.trans_max} (at most {windows.window - 2})")
+    ws = window_settings(source, split)
+    forward = ws["forward_axis"] or tuple(windows.skeleton.forward_axis())
+    return TrainData.from_windows(
+        windows, stats=compute_stats(windows),
+        provenance={"source": source, "split": split,
+                    "files": [os.path.basename(f) for f in split_files(source, split)],
+                    "windows": len(windows), "window_frames": windows.window},
+        extra={"lafan1": bool(is_lafan1(source)), "forward_axis": [float(x) for x in forward],
+               "contact_velfactor": float(ws["contact_velfactor"])})
 
 
-@dataclasses.dataclass
-class TrainData:
-    """Training windows with their phase labels (NumPy)."""
-    q: np.ndarray        # (N, T, J, 4)
-    r: np.ndarray        # (N, T, 3)
-    c: np.ndarray        # (N, T, 4)
-    phase_f: np.ndarray  # (N, T, 4)
-    phase_b: np.ndarray  # (N, T, 4)
-    p: np.ndarray        # (N, T, J, 3) global joint positions
-    parents: tuple
-
-    @classmethod
-    def from_windows(cls, w) -> "TrainData":
-        pf = phase_labels(w.contacts)
-        pb = phase_labels(w.reversed().contacts)[:, ::-1].copy()   # labelled on the reversed motion
-        return cls(w.local_quats.astype(np.float32), w.root_pos.astype(np.float32), w.contacts.astype(np.float32),
-                   pf, pb, w.global_pose()[1], tuple(w.parents))
-
-    def __len__(self):
-        return self.q.shape[0]
+def make_training(cfg, data: TrainData) -> Training:
+    """init / step / batch functions and run metadata for :func:`inbetween_jax.train.run_training`."""
+    max_length = cfg.data.trans_max + 1
+    if data.stats is None:
+        raise ValueError("make_training needs the data of load_data (with its feature statistics)")
+    stats, num_joints = data.stats, int(data.q.shape[2])
+    meta = {"skeleton": data.skeleton.to_dict() if data.skeleton is not None else None, "fps": data.fps,
+            "stats": stats, "data": dict(data.provenance), "extra": {"num_joints": num_joints, **data.extra}}
+    src = data.provenance.get("source")
+    describe = (f"{len(data)} windows of {data.q.shape[1]} frames{f' from {src}' if src else ''} ({num_joints} "
+                f"joints); transitions of {cfg.data.trans_start}..{cfg.data.trans_max} frames")
+    return Training(init_fn=make_init_fn(cfg, stats, num_joints),
+                    step_fn=make_train_step(cfg, data.parents, max_length),
+                    batch_fn=batch_fn_factory(data, cfg), num_steps=cfg.train.num_steps, meta=meta,
+                    describe=describe)
 
 
-def transition_length(step: int, tcfg, num_windows: int) -> int:
-    """Progressive training: trans_start + 1 every ``epochs_per_increment`` epochs, capped at trans_max."""
-    steps_per_epoch = max(1, num_windows // tcfg.batch_size)
-    inc = int(step // max(1.0, tcfg.epochs_per_increment * steps_per_epoch))
-    return int(min(tcfg.trans_max, tcfg.trans_start + inc))
+def transition_length(step: int, cfg, num_windows: int) -> int:
+    """Progressive training: ``data.trans_start`` + 1 every ``data.epochs_per_increment`` epochs (an epoch:
+    ``num_windows // train.batch_size`` steps), capped at ``data.trans_max``.  cfg: Config."""
+    dcfg = cfg.data
+    steps_per_epoch = max(1, num_windows // cfg.train.batch_size)
+    inc = int(step // max(1.0, dcfg.epochs_per_increment * steps_per_epoch))
+    return int(min(dcfg.trans_max, dcfg.trans_start + inc))
 
 
 def make_batch(data: TrainData, idx: np.ndarray, starts: np.ndarray, length: int, max_length: int) -> dict:
@@ -74,19 +88,21 @@ def make_batch(data: TrainData, idx: np.ndarray, starts: np.ndarray, length: int
             "length": np.int32(length)}
 
 
-def batch_fn_factory(data: TrainData, tcfg):
-    """``(step, key) -> batch`` deterministic in its arguments (run_training's contract)."""
-    max_length = tcfg.trans_max + 1
+def batch_fn_factory(data: TrainData, cfg):
+    """``(step, key) -> batch`` deterministic in its arguments (run_training's contract).  cfg: Config."""
+    max_length = cfg.data.trans_max + 1
     window = data.q.shape[1]
     if max_length >= window:
-        raise ValueError(f"trans_max={tcfg.trans_max} needs windows of at least {max_length + 1} frames")
+        raise ValueError(f"data.trans_max={cfg.data.trans_max} needs windows of at least {max_length + 1} frames "
+                         f"(these have {window})")
+    batch_size = cfg.train.batch_size
 
     def batch_fn(step, key):
         seed = np.asarray(jax.random.key_data(key)).astype(np.uint64)
         rng = np.random.default_rng(seed)
-        length = transition_length(step, tcfg, len(data)) + 1
-        idx = rng.integers(0, len(data), tcfg.batch_size)
-        starts = rng.integers(0, window - length, tcfg.batch_size)
+        length = transition_length(step, cfg, len(data)) + 1
+        idx = rng.integers(0, len(data), batch_size)
+        starts = rng.integers(0, window - length, batch_size)
         return make_batch(data, idx, starts, length, max_length)
 
     return batch_fn
@@ -106,19 +122,14 @@ def split_batch(batch: dict):
     return start, target, gt_f, gt_b
 
 
-def make_optimizer(tcfg):
-    return optax.chain(optax.clip_by_global_norm(tcfg.grad_clip),
-                       optax.adamw(tcfg.lr, b1=tcfg.b1, b2=tcfg.b2, weight_decay=tcfg.weight_decay))
-
-
 def make_init_fn(cfg, stats: dict, num_joints: int):
     """key -> train state {params, disc, opt_g, opt_d, stats}."""
     opt = make_optimizer(cfg.train)
 
     def init_fn(key):
         kg, kd = jax.random.split(key)
-        params = scvae.init_params(kg, cfg.model, num_joints)
-        disc = L.init_discriminators(kd, cfg.model, scvae.dims(num_joints)["state"])
+        params = M.init_params(kg, cfg.model, num_joints)
+        disc = L.init_discriminators(kd, cfg.model, dims(num_joints)["state"])
         return {"params": params, "disc": disc, "opt_g": opt.init(params), "opt_d": opt.init(disc),
                 "stats": jax.tree.map(jnp.asarray, stats)}
 
@@ -127,12 +138,12 @@ def make_init_fn(cfg, stats: dict, num_joints: int):
 
 def generator_loss(params, disc, cfg, stats, batch, key, parents, max_length, taps=None):
     """Eq. 10 without the discriminator term.  Returns (loss, (metrics, stitched output, recorded matmul
-    inputs)); with ``taps`` (:func:`scvae.make_taps`) the tapped weights get no gradient here (see
-    :func:`scvae.add_deferred_weight_grads`)."""
+    inputs)); with ``taps`` (:func:`.deferred_grads.make_taps`) the tapped weights get no gradient here (see
+    :func:`.deferred_grads.add_deferred_weight_grads`)."""
     mcfg, lcfg = cfg.model, cfg.loss
     start, target, gt_f, gt_b = split_batch(batch)
     length = batch["length"]
-    res = scvae.rollout(params, mcfg, stats, start, target, length, key, max_length, taps)
+    res = M.rollout(params, mcfg, stats, start, target, length, key, max_length, taps)
     if mcfg.bidirectional:   # one FK call for both generators
         both = L.fk_positions(jnp.concatenate([res["fwd"]["q"], res["bwd"]["q"]]),
                               jnp.concatenate([res["fwd"]["r"], res["bwd"]["r"]]), stats, parents)
@@ -170,12 +181,12 @@ def make_train_step(cfg, parents: tuple, max_length: int):
 
     def train_step(state, batch, key):
         stats = state["stats"]
-        if cfg.train.deferred_wgrad:   # largest weight gradients as one matmul each after the scan
-            taps = scvae.make_taps(state["params"], cfg.model, batch["q"].shape[0], max_length)
+        if cfg.model.deferred_wgrad:   # largest weight gradients as one matmul each after the scan
+            taps = make_taps(state["params"], cfg.model, batch["q"].shape[0], max_length)
             grad_fn = jax.value_and_grad(generator_loss, argnums=(0, 8), has_aux=True)
             (loss, (metrics, out, recs)), (g, g_taps) = grad_fn(state["params"], state["disc"], cfg, stats, batch,
                                                                 key, parents, max_length, taps)
-            g = scvae.add_deferred_weight_grads(g, recs, g_taps)
+            g = add_deferred_weight_grads(g, recs, g_taps)
         else:
             grad_fn = jax.value_and_grad(generator_loss, has_aux=True)
             (loss, (metrics, out, _)), g = grad_fn(state["params"], state["disc"], cfg, stats, batch, key, parents,
@@ -200,22 +211,3 @@ def make_train_step(cfg, parents: tuple, max_length: int):
         return dict(state, params=params, disc=disc, opt_g=opt_g, opt_d=opt_d), metrics
 
     return train_step
-
-
-def train(cfg, windows, run_dir: str, num_steps: int | None = None, progress: bool = True):
-    """Train on MotionWindows ``windows`` (forward time; the backward generator sees them reversed).
-    Resumes from ``run_dir/checkpoints``.  Returns (state, logged rows)."""
-    from inbetween_jax.train import run_training
-    data = TrainData.from_windows(windows)
-    stats = compute_stats(windows)
-    max_length = cfg.train.trans_max + 1
-    init_fn = make_init_fn(cfg, stats, data.q.shape[2])
-    step_fn = make_train_step(cfg, data.parents, max_length)
-    tc = cfg.train
-    return run_training(init_fn, step_fn, batch_fn_factory(data, tc), cfg, run_dir,
-                        num_steps if num_steps is not None else tc.num_steps, tc.log_every, tc.ckpt_every, tc.seed,
-                        progress=progress)
-
-
-def steps_for_epochs(epochs: float, num_windows: int, batch_size: int) -> int:
-    return int(math.ceil(epochs * num_windows / batch_size))

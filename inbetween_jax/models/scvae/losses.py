@@ -13,8 +13,8 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from inbetween_jax.geometry import forward_kinematics, local_positions
-from inbetween_jax.models import scvae_nn as nn
-from inbetween_jax.models.scvae import state_features
+from inbetween_jax.models.scvae import layers as nn
+from inbetween_jax.models.scvae.model import phase_step
 
 
 def velocity(r):
@@ -65,16 +65,15 @@ def stitch_loss(pos_f, pos_b, length, h, k, pos_unit=1.0):
 def phase_loss(phase_params, gt: dict, length, stats):
     """Teacher-forced L1 of the phase network on labels: phase_{t+1} = label_t + net(state_t, label_t),
     and the keyframe phase net(state_0 with v = 0, phase 0) against label_0."""
-    from inbetween_jax.models.scvae_phase import phase_step
     b, t = gt["q"].shape[:2]
     frames = {"q": gt["q"], "v": velocity(gt["r"]), "c": gt["c"], "phase": gt["phase"]}
     flat = {k: v.reshape((b * t,) + v.shape[2:]) for k, v in frames.items()}
-    nxt = phase_step(phase_params, flat, stats, state_features).reshape(b, t, -1)
+    nxt = phase_step(phase_params, flat, stats).reshape(b, t, -1)
     step_err = jnp.mean(jnp.abs(nxt[:, :-1] - gt["phase"][:, 1:]), -1)
     steps_mask = jnp.arange(t - 1) < length
     first = {"q": gt["q"][:, 0], "v": jnp.zeros_like(gt["r"][:, 0]), "c": gt["c"][:, 0],
              "phase": jnp.zeros_like(gt["phase"][:, 0])}
-    init_err = jnp.mean(jnp.abs(phase_step(phase_params, first, stats, state_features) - gt["phase"][:, 0]))
+    init_err = jnp.mean(jnp.abs(phase_step(phase_params, first, stats) - gt["phase"][:, 0]))
     return masked_mean(step_err, steps_mask) + init_err
 
 

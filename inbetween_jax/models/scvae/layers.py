@@ -1,8 +1,11 @@
-"""Pure-function building blocks of the S-CVAE: dense / MLP / LSTM / mixture-of-experts on plain param pytrees.
+"""Pure-function building blocks of the S-CVAE: dense / MLP / LSTM / mixture-of-experts on plain param pytrees,
+and the time-to-arrival embedding.
 
 Parameters are nested dicts of float32 arrays, declared by ``init_*`` on a :class:`ParamFactory` and
 drawn from one explicit PRNG key by ``ParamFactory.materialize``.  The apply functions are pure (nothing
 here holds state), so every model function can be ``jit``-ed, ``vmap``-ed and differentiated directly.
+The optional ``tap`` arguments defer weight gradients (training speed only, see
+:mod:`inbetween_jax.models.scvae.deferred_grads`).
 """
 from __future__ import annotations
 
@@ -11,6 +14,8 @@ from typing import Sequence
 import jax
 import jax.numpy as jnp
 import numpy as np
+
+from inbetween_jax.models.scvae.deferred_grads import tapped_matmul
 
 
 class _Slot:
@@ -91,19 +96,6 @@ def lstm(params: dict, carry, x):
     h, c = carry
     h, c = lstm_cell(x @ params["wx"] + h @ params["wh"] + params["b"], c)
     return (h, c), h
-
-
-def tapped_matmul(x, w, tap=None):
-    """``x @ w``; with a ``tap`` (zeros shaped like the product) the weight gradient is left to the caller.
-
-    ``w`` is wrapped in ``stop_gradient`` and ``tap`` added to the product, so ``d loss / d tap`` is the
-    product's cotangent.  Given the recorded inputs x_t of every scan step, the caller forms
-    ``d loss / d w = sum_t x_t^T (d loss / d tap_t)`` as one large matmul after the scan instead of one
-    small matmul plus a full-size accumulating add per step.  Gradients to ``x`` are unchanged.
-    """
-    if tap is None:
-        return x @ w
-    return x @ jax.lax.stop_gradient(w) + tap
 
 
 def lstm_shared_carry(params: dict, carry, x1, x2, taps=None):

@@ -1,0 +1,123 @@
+"""S-CVAE rows of the paper's Table 1 layout (plus MMPE) beside Slerp, on the benchmark windows.
+
+``run(source, results_dir, run_dir, quick)``: keyframes at frame 9 (one past frame) and 9 + L + 1 for
+L = 10, 30, 50 (whatever ``data.trans_max`` the run was trained with); APD over 10 samples; accuracy metrics averaged over the
+samples.  Also writes ``<results>/scvae_error_over_time.png``: the per-frame joint position error along the
+longest transition (mean over windows and samples, band = min..max over the samples averaged over windows)
+with Slerp dashed, as Fig. 6 of the S-CVAE paper.  Without a trained run the section is skipped (one line).
+"""
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+
+N_PAST = 10
+LENGTHS = (10, 30, 50)
+NUM_SAMPLES = 10
+
+
+def _skipped(why: str, source=None) -> dict:
+    md = f"**S-CVAE**: skipped, {why} (train one with `inbetween train scvae`)."
+    return {"markdown": md, "rows": [], "skipped": why, "source": source}
+
+
+def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> dict:
+    """Table-1 rows of the run in ``run_dir`` on ``source``'s benchmark windows.
+
+    Returns ``{"markdown", "rows": [flat records], "table": [row dicts], "step", "source", "windows", "plots"}``;
+    a run folder that is missing, holds no checkpoint, or was trained on another skeleton gives a skip line.
+    """
+    from inbetween_jax import metrics
+    from inbetween_jax.data import l2p_stats, load_dataset, resolve_source
+    from inbetween_jax.data.datasets import is_lafan1
+    from inbetween_jax.evaluation import TABLE_COLUMNS, baseline_table1, flat_rows, markdown_table, transition_metrics
+    from inbetween_jax.models.scvae import infer
+    from inbetween_jax.train.run import RunError, load_run
+
+    t0 = time.time()
+    source = resolve_source(source)
+    if run_dir is None:
+        return _skipped("no run folder given", source)
+    try:
+        run_ = load_run(run_dir)
+    except RunError as e:
+        return _skipped(str(e), source)
+    if run_.model != "scvae":
+        return _skipped(f"`{run_dir}` holds a {run_.model} run", source)
+    train = load_dataset(source, "train")
+    bench = load_dataset(source, "benchmark")
+    joints = int(train.local_quats.shape[2])
+    if run_.extra.get("num_joints", joints) != joints:
+        return _skipped(f"the run in `{run_dir}` was trained on a {run_.extra['num_joints']}-joint skeleton "
+                        f"({run_.data.get('source')}) and this source has {joints} joints", source)
+    trained = infer.load(run_)
+    lengths = tuple(n for n in LENGTHS if N_PAST + n < bench.window)
+    if not lengths:
+        return _skipped(f"the {bench.window}-frame benchmark windows hold no {min(LENGTHS)}-frame transition", source)
+    x_mean, x_std = l2p_stats(train.global_pose()[1])
+    note = f"Run `{run_dir}` at step {trained.step}. "
+    if quick:
+        bench = bench.take(slice(0, 64))
+        note += f"Quick: first {len(bench)} benchmark windows. "
+    rows = [r for r in baseline_table1(bench, x_mean, x_std, lengths, N_PAST) if r["method"] == "Slerp"]
+    longest = None
+    for length in lengths:
+        s = infer.sample_transitions(trained.cfg.model, trained.state, bench, N_PAST, length, NUM_SAMPLES)
+        if length == max(lengths):
+            longest = s
+        row = {"method": "S-CVAE", "frames": length,
+               **transition_metrics(bench, N_PAST, length, s["q"], s["r"], x_mean, x_std)}
+        row["MMPE"] = (float(metrics.mmpe(s["mid_f"][:, :, None], s["mid_b"][:, :, None], mid_index=0))
+                       if "mid_f" in s else None)
+        rows.append(row)
+    rows.sort(key=lambda r: (r["frames"], r["method"] != "Slerp"))
+    cols = tuple(TABLE_COLUMNS) + ("MMPE",)
+    md = markdown_table(rows, cols, f"S-CVAE, Table 1 layout ({len(bench)} windows, {NUM_SAMPLES} samples)")
+    os.makedirs(results_dir, exist_ok=True)
+    plot = error_over_time_plot(bench, max(lengths), longest, "S-CVAE",
+                                os.path.join(results_dir, "scvae_error_over_time.png"))
+    md += (f"\n\n{note}APD/ADE/SLDE in m, FootSlide in cm/frame, MMPE in cm. Error along the {max(lengths)}-frame "
+           f"transition: `{os.path.basename(plot)}`. Wall {time.time() - t0:.0f} s.")
+    data = "lafan1" if is_lafan1(source) else "embedded" if source == "embedded" else "bvh"
+    records = (flat_rows([r for r in rows if r["method"] == "Slerp"], "table1", data, model="slerp")
+               + flat_rows([r for r in rows if r["method"] != "Slerp"], "table1", data, model="scvae",
+                           variant=run_.preset))
+    return {"markdown": md, "rows": records, "table": rows, "step": trained.step, "source": source,
+            "windows": len(bench), "plots": [plot]}
+
+
+def per_frame_error(windows, n_past: int, n_trans: int, q, r) -> np.ndarray:
+    """Mean joint position error (data units, cm) of every transition frame against the ground truth.
+
+    q: (S, B, n_trans, J, 4) local quaternions, r: (S, B, n_trans, 3) root positions of S samples of the
+    transition after frame ``n_past - 1`` of the B windows.  Returns (S, B, n_trans).
+    """
+    from inbetween_jax.geometry import forward_kinematics, local_positions
+
+    def fk(quats, root):
+        lp = local_positions(np.asarray(root, np.float64), windows.skeleton.offsets)
+        return forward_kinematics(np.asarray(quats, np.float64), lp, windows.parents)[1]
+
+    lo, hi = n_past, n_past + n_trans
+    gt = fk(windows.local_quats[:, lo:hi], windows.root_pos[:, lo:hi])                # (B, L, J, 3)
+    return np.stack([np.linalg.norm(fk(qs, rs) - gt, axis=-1).mean(-1) for qs, rs in zip(q, r)])
+
+
+def error_over_time_plot(windows, n_trans: int, samples: dict, label: str, path: str) -> str:
+    """Plot the per-frame error of ``samples`` (``sample_transitions`` output) with Slerp as the baseline.
+
+    Curve: mean over windows and samples; band: per window min..max over the samples, averaged over windows.
+    """
+    from inbetween_jax.baselines import interpolate_transition
+    from inbetween_jax.viz import plot_error_over_time
+    err = per_frame_error(windows, N_PAST, n_trans, samples["q"], samples["r"])           # (S, B, L)
+    q, r = interpolate_transition(windows.local_quats.astype(np.float64), windows.root_pos.astype(np.float64),
+                                  N_PAST, n_trans)
+    slerp = per_frame_error(windows, N_PAST, n_trans, q[None], r[None])[0].mean(0)
+    title = (f"{n_trans}-frame transitions, {err.shape[1]} windows\n"
+             f"band: min..max over {err.shape[0]} samples, averaged over windows")
+    return plot_error_over_time(np.arange(1, n_trans + 1), err.mean((0, 1)), err.min(0).mean(0),
+                                err.max(0).mean(0), path, label, baseline={"Slerp": slerp},
+                                ylabel="mean joint position error (cm)", title=title)

@@ -1,0 +1,244 @@
+"""S-CVAE inference: load a trained run, sample transitions on benchmark windows, in-between users' keyframes.
+
+All N samples of a chunk of windows come from one compiled call (``vmap`` over PRNG keys of the
+``lax.scan`` rollout, see :func:`inbetween_jax.models.scvae.model.sample`).
+
+Canonical space of users' keyframes.  They are put in the space of the training windows with
+:func:`inbetween_jax.data.windows.canonicalize` (centred in XZ on the mean root of the two keyframes -- the
+training windows use the mean over the window, which the network never sees: it is only fed velocities and
+offsets between frames -- and turned so that the start keyframe faces +X), and the samples are mapped back
+with the inverse rigid motion.
+"""
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from inbetween_jax.models.scvae import model as M
+from inbetween_jax.models.scvae.losses import fk_positions
+
+__all__ = ["MIN_FRAMES", "INFILL_OPTIONS", "Trained", "load", "infill", "frame_range", "infill_between",
+           "keyframe_contacts", "sample_transitions"]
+
+MIN_FRAMES = 3          # L = frames + 1 >= 4 frames between keyframes (model.rollout)
+
+INFILL_OPTIONS = {
+    "start": "start keyframe FILE.bvh[:FRAME] (default frame 0)",
+    "end": "end keyframe FILE.bvh[:FRAME] (default last frame)",
+    "frames": "generated frames between the keyframes",
+}
+
+
+@dataclasses.dataclass
+class Trained:
+    """A restored S-CVAE run: ``cfg`` (Config), ``state`` (the train state: params, disc, stats ...), ``step``,
+    the training ``skeleton`` (or None) and ``extra`` (num_joints, lafan1, forward_axis, contact_velfactor)."""
+    cfg: object
+    state: dict
+    step: int
+    skeleton: object
+    extra: dict
+
+    @property
+    def params(self) -> dict:
+        return self.state["params"]
+
+    @property
+    def stats(self) -> dict:
+        return self.state["stats"]
+
+
+def load(run) -> Trained:
+    """Restore the chosen (``run.step``) checkpoint of an S-CVAE run (:func:`inbetween_jax.train.run.load_run`).
+
+    Raises:
+        RunError: the folder does not hold an S-CVAE run, or its checkpoint does not fit its config.
+    """
+    from inbetween_jax.data import Skeleton
+    from inbetween_jax.models.scvae.config import Config
+    from inbetween_jax.models.scvae.features import stats_like
+    from inbetween_jax.models.scvae.train import make_init_fn
+    from inbetween_jax.train.config import ConfigError, config_from_dict
+    from inbetween_jax.train.run import RunError, restore_state
+    if run.model != "scvae":
+        raise RunError(f"{run.run_dir}: holds a {run.model} run, not an S-CVAE run")
+    try:
+        cfg = config_from_dict(Config, run.config)
+    except (ConfigError, TypeError) as e:
+        raise RunError(f"{run.run_dir}: run.json holds no S-CVAE config ({e})") from None
+    skeleton = Skeleton.from_dict(run.skeleton) if run.skeleton else None
+    num_joints = run.extra.get("num_joints") or (skeleton.num_joints if skeleton is not None else None)
+    if num_joints is None:
+        raise RunError(f"{run.run_dir}: run.json records no skeleton (num_joints unknown)")
+    init_fn = make_init_fn(cfg, stats_like(int(num_joints)), int(num_joints))
+    state = restore_state(run, jax.eval_shape(init_fn, jax.random.key(0)))
+    return Trained(cfg, state, int(run.step), skeleton, dict(run.extra, num_joints=int(num_joints)))
+
+
+def frame_range(cfg) -> tuple:
+    """Transition lengths (generated frames between the keyframes) the S-CVAE was trained for."""
+    return MIN_FRAMES, int(cfg.data.trans_max)
+
+
+# ----------------------------------------------------------------------------- benchmark windows
+@functools.partial(jax.jit, static_argnames=("cfg", "max_length", "parents"))
+def _sample_chunk(params, stats, start, target, keys, cfg, max_length, parents):
+    res = M.sample(params, cfg, stats, start, target, max_length, keys, max_length)
+    out = res["out"]
+    mid = max_length // 2
+    extra = {}
+    if cfg.bidirectional:  # raw forward / backward poses at the middle frame (MMPE)
+        pf = fk_positions(res["fwd"]["q"][:, :, mid - 1], res["fwd"]["r"][:, :, mid - 1], stats, parents)
+        pb = fk_positions(res["bwd"]["q"][:, :, max_length - 1 - mid], res["bwd"]["r"][:, :, max_length - 1 - mid],
+                          stats, parents)
+        extra = {"mid_f": pf, "mid_b": pb}
+    return {"q": out["q"][:, :, 1:max_length], "r": out["r"][:, :, 1:max_length], **extra}
+
+
+def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_samples: int, seed: int = 0,
+                       chunk: int = 128) -> dict:
+    """Transitions between frame ``n_past - 1`` and frame ``n_past + n_trans`` of every window.
+
+    cfg: ModelConfig; state: train state (``params``, ``stats``).
+    Returns q (S, B, n_trans, J, 4), r (S, B, n_trans, 3) and, for the bi-directional model, mid_f / mid_b
+    (S, B, J, 3) raw forward / backward FK positions at the middle frame.
+    """
+    length = n_trans + 1
+    keys = jax.random.split(jax.random.key(seed), num_samples)
+    parts = []
+    k0, k1 = n_past - 1, n_past + n_trans
+    for lo in range(0, len(windows), chunk):
+        sl = slice(lo, lo + chunk)
+        start = {"q": windows.local_quats[sl, k0], "r": windows.root_pos[sl, k0], "c": windows.contacts[sl, k0]}
+        target = {"q": windows.local_quats[sl, k1], "r": windows.root_pos[sl, k1], "c": windows.contacts[sl, k1]}
+        start = jax.tree.map(jnp.asarray, start)
+        target = jax.tree.map(jnp.asarray, target)
+        parts.append(jax.device_get(_sample_chunk(state["params"], state["stats"], start, target, keys, cfg,
+                                                  length, tuple(windows.parents))))
+    return {k: np.concatenate([p[k] for p in parts], axis=1) for k in parts[0]}
+
+
+# ----------------------------------------------------------------------------- users' keyframes
+def keyframe_contacts(motion, frame: int, velfactor: float) -> np.ndarray:
+    """(4,) foot contacts of one frame, from its displacement to the next frame (previous for the last)."""
+    from inbetween_jax.data.features import foot_contacts
+    from inbetween_jax.geometry import forward_kinematics
+    n = motion.num_frames
+    if n < 2:
+        return np.zeros(4, np.float32)
+    a, b = (frame, frame + 1) if frame + 1 < n else (frame - 1, frame)
+    _, gp = forward_kinematics(motion.local_quats[[a, b]], motion.local_pos[[a, b]], motion.skeleton.parents)
+    return foot_contacts(gp[:, list(motion.skeleton.foot_joints())], velfactor)[0]
+
+
+@functools.partial(jax.jit, static_argnames=("cfg", "max_length"))
+def _sample_pair(params, stats, start, target, keys, cfg, max_length):
+    out = M.sample(params, cfg, stats, start, target, max_length, keys, max_length)["out"]
+    return out["q"][:, 0], out["r"][:, 0]
+
+
+def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: int, num_samples: int,
+                   seed: int = 0, forward_axis=None) -> dict:
+    """Sample ``num_samples`` transitions of ``frames`` frames between two world-space keyframes.
+
+    start / end: dicts with ``q`` (J, 4) unit local quaternions, ``r`` (3,) root position, ``c`` (4,) foot
+    contacts.  skeleton: the keyframes' skeleton (its offsets give the FK of the canonicalisation).
+    forward_axis: the root's local facing axis (default: inferred from ``skeleton``).
+    Returns ``q`` (S, frames + 2, J, 4) and ``r`` (S, frames + 2, 3) float64 in the keyframes' world space;
+    frame 0 is ``start`` and frame ``frames + 1`` is ``end``, both exactly as given.
+
+    Raises:
+        ValueError: (one line naming the array) frames out of range, non-unit quaternions, bad root positions.
+    """
+    from inbetween_jax.data.user_input import check_unit_quats
+    from inbetween_jax.data.windows import canonicalize
+    from inbetween_jax.geometry import quat_fix_sign_np, quat_inv, quat_mul, quat_rotate
+    lo, hi = frame_range(trained.cfg)
+    if not lo <= frames <= hi:
+        raise ValueError(f"frames={frames}: this S-CVAE generates {lo}..{hi} frames between keyframes")
+    if num_samples < 1:
+        raise ValueError(f"num_samples={num_samples}: need at least one sample")
+    qs = check_unit_quats(start["q"], "start keyframe q")
+    qe = check_unit_quats(end["q"], "end keyframe q")
+    for name, key in (("start", start), ("end", end)):
+        r = np.asarray(key["r"], np.float64)
+        if r.shape != (3,) or not np.all(np.isfinite(r)):
+            raise ValueError(f"{name} keyframe r: expected 3 finite numbers, got {r!r}")
+    fa = np.asarray(skeleton.forward_axis() if forward_axis is None else forward_axis, np.float64)
+    roots = np.stack([start["r"], end["r"]]).astype(np.float64)
+    cq, cr = canonicalize(np.stack([qs, qe])[None], roots[None], skeleton, 1, fa)      # (1, 2, J, 4), (1, 2, 3)
+    yaw = quat_mul(qs[0], quat_inv(cq[0, 0, 0]))                                      # canonical -> world
+    shift = np.array([roots[:, 0].mean(), 0.0, roots[:, 2].mean()])
+    frame = lambda i, c: {"q": jnp.asarray(cq[:, i], jnp.float32), "r": jnp.asarray(cr[:, i], jnp.float32),  # noqa
+                          "c": jnp.asarray(np.asarray(c, np.float32)[None])}
+    keys = jax.random.split(jax.random.key(seed), num_samples)
+    q, r = jax.device_get(_sample_pair(trained.params, trained.stats, frame(0, start["c"]), frame(1, end["c"]),
+                                       keys, trained.cfg.model, frames + 1))
+    q, r = np.asarray(q, np.float64)[:, :frames + 2], np.asarray(r, np.float64)[:, :frames + 2]
+    q[:, :, 0] = quat_mul(np.broadcast_to(yaw, q[:, :, 0].shape), q[:, :, 0])
+    r = quat_rotate(np.broadcast_to(yaw, r.shape[:-1] + (4,)), r) + shift
+    q[:, 0], r[:, 0], q[:, -1], r[:, -1] = qs, roots[0], qe, roots[1]                 # exact keyframes
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    return {"q": quat_fix_sign_np(q, axis=1), "r": r}
+
+
+def _is_lafan1_skeleton(skel) -> bool:
+    return skel.names[0] == "Hips" and "LeftToe" in skel.names
+
+
+def _sample_names(n: int) -> list:
+    width = max(2, len(str(n - 1)))
+    return [f"sample_{i:0{width}d}" for i in range(n)]
+
+
+def infill(args, run):
+    """``inbetween infill --model scvae``: ``args.samples`` transitions of ``args.frames`` frames from
+    ``args.start`` to ``args.end`` (``FILE.bvh[:FRAME]``) on the start file's skeleton.
+
+    Returns an :class:`~inbetween_jax.models.spec.InfillResult` with one Motion per sample (``sample_00`` ...):
+    frames + 2 frames, the start keyframe, the generated frames and the end keyframe.
+    Raises:
+        UserError: one line naming the file / option (unreadable BVH, other skeleton, frames out of range, a
+            diverged checkpoint).
+    """
+    from inbetween_jax.data import lafan1
+    from inbetween_jax.data.datasets import GENERIC_CONTACT_VELFACTOR
+    from inbetween_jax.data.user_input import check_skeleton, finite_or_fail, read_keyframe, same_skeleton
+    from inbetween_jax.errors import UserError
+    from inbetween_jax.models.spec import InfillResult
+    trained = load(run)
+    cache = {}
+    sp, sm, sf = read_keyframe(args.start, "--start", 0, cache)
+    ep, em, ef = read_keyframe(args.end, "--end", -1, cache)
+    skel = sm.skeleton
+    check_skeleton(skel, sp, trained.skeleton, trained.extra["num_joints"])
+    same_skeleton(em.skeleton, ep, skel, sp)
+    lo, hi = frame_range(trained.cfg)
+    if not lo <= args.frames <= hi:
+        raise UserError(f"--frames {args.frames}: this S-CVAE checkpoint generates {lo}..{hi} frames between "
+                        f"keyframes (trained with data.trans_max={hi})")
+    lafan = bool(trained.extra.get("lafan1")) or _is_lafan1_skeleton(skel)
+    ref = trained.skeleton or skel
+    if lafan:
+        fa, vf = lafan1.ROOT_FORWARD_AXIS, lafan1.CONTACT_VELFACTOR
+    else:
+        fa = tuple(trained.extra["forward_axis"]) if "forward_axis" in trained.extra else tuple(ref.forward_axis())
+        vf = trained.extra.get("contact_velfactor", GENERIC_CONTACT_VELFACTOR)
+    start = {"q": sm.local_quats[sf], "r": sm.root_pos[sf], "c": keyframe_contacts(sm, sf, vf)}
+    end = {"q": em.local_quats[ef], "r": em.root_pos[ef], "c": keyframe_contacts(em, ef, vf)}
+    res = infill_between(trained, skel, start, end, args.frames, args.samples, args.seed, fa)
+    finite_or_fail(run.run_dir, res["q"], res["r"])
+    t = args.frames + 2
+    w = (np.arange(t) / (t - 1))[:, None, None]
+    base_pos = (1 - w) * sm.local_pos[sf] + w * em.local_pos[ef]       # joints with position channels: lerp
+    samples = []
+    for name, q, r in zip(_sample_names(args.samples), res["q"], res["r"]):
+        pos = base_pos.copy()
+        pos[:, 0] = r
+        samples.append((name, [dataclasses.replace(sm, local_quats=q, local_pos=pos)], None))
+    return InfillResult(samples=samples, summary={"start": f"{sp}:{sf}", "end": f"{ep}:{ef}", "frames": args.frames,
+                                                  "samples": args.samples, "step": trained.step})
