@@ -10,7 +10,7 @@ import tempfile
 
 from inbetween_jax.cli import interrupt
 
-__all__ = ["check_out", "write_outputs", "bvh_writer", "npy_writer", "json_writer", "sample_names", "add_previews"]
+__all__ = ["check_out", "write_outputs", "bvh_writer", "npy_writer", "json_writer", "add_previews"]
 
 
 def _umask() -> int:
@@ -77,11 +77,6 @@ def json_writer(obj):
         with open(path, "w") as f:
             json.dump(obj, f, indent=1)
     return write
-
-
-def sample_names(n: int) -> list:
-    width = max(2, len(str(n - 1)))
-    return [f"sample_{i:0{width}d}" for i in range(n)]
 
 
 def add_previews(files: dict, name: str, motions: list, generated=None, what: str = "keyframes",

@@ -21,7 +21,7 @@ import dataclasses
 import importlib
 from typing import Any, Callable
 
-__all__ = ["InfillResult", "ModelSpec", "Training"]
+__all__ = ["InfillResult", "ModelSpec", "Training", "sample_names"]
 
 
 @dataclasses.dataclass
@@ -38,6 +38,12 @@ class Training:
     num_steps: int
     meta: dict
     describe: str = ""       # one line for the user: what it trains on
+
+
+def sample_names(n: int) -> list:
+    """``["sample_00", "sample_01", ...]`` (at least two digits): the names of ``n`` samples."""
+    width = max(2, len(str(n - 1)))
+    return [f"sample_{i:0{width}d}" for i in range(n)]
 
 
 @dataclasses.dataclass

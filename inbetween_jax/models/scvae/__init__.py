@@ -18,3 +18,9 @@ Files::
     infer.py           load(run), sample_transitions on windows, infill(args, run) on users' keyframes
     bench.py           the model's rows of the Table 1 layout beside Slerp, error-over-time plot
 """
+
+INFILL_OPTIONS = {   # ``inbetween infill --model scvae``: dest -> (metavar, help)
+    "start": ("FILE.bvh[:FRAME]", "start keyframe (default frame 0)"),
+    "end": ("FILE.bvh[:FRAME]", "end keyframe (default last frame)"),
+    "frames": ("N", "generated frames between the keyframes"),
+}

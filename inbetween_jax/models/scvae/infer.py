@@ -21,17 +21,10 @@ import numpy as np
 from inbetween_jax.models.scvae import model as M
 from inbetween_jax.models.scvae.losses import fk_positions
 
-__all__ = ["MIN_FRAMES", "INFILL_OPTIONS", "Trained", "load", "infill", "frame_range", "infill_between",
+__all__ = ["MIN_FRAMES", "Trained", "load", "infill", "frame_range", "infill_between",
            "keyframe_contacts", "sample_transitions"]
 
 MIN_FRAMES = 3          # L = frames + 1 >= 4 frames between keyframes (model.rollout)
-
-INFILL_OPTIONS = {
-    "start": "start keyframe FILE.bvh[:FRAME] (default frame 0)",
-    "end": "end keyframe FILE.bvh[:FRAME] (default last frame)",
-    "frames": "generated frames between the keyframes",
-}
-
 
 @dataclasses.dataclass
 class Trained:
@@ -190,11 +183,6 @@ def _is_lafan1_skeleton(skel) -> bool:
     return skel.names[0] == "Hips" and "LeftToe" in skel.names
 
 
-def _sample_names(n: int) -> list:
-    width = max(2, len(str(n - 1)))
-    return [f"sample_{i:0{width}d}" for i in range(n)]
-
-
 def infill(args, run):
     """``inbetween infill --model scvae``: ``args.samples`` transitions of ``args.frames`` frames from
     ``args.start`` to ``args.end`` (``FILE.bvh[:FRAME]``) on the start file's skeleton.
@@ -209,7 +197,7 @@ def infill(args, run):
     from inbetween_jax.data.datasets import GENERIC_CONTACT_VELFACTOR
     from inbetween_jax.data.user_input import check_skeleton, finite_or_fail, read_keyframe, same_skeleton
     from inbetween_jax.errors import UserError
-    from inbetween_jax.models.spec import InfillResult
+    from inbetween_jax.models.spec import InfillResult, sample_names
     trained = load(run)
     cache = {}
     sp, sm, sf = read_keyframe(args.start, "--start", 0, cache)
@@ -236,7 +224,7 @@ def infill(args, run):
     w = (np.arange(t) / (t - 1))[:, None, None]
     base_pos = (1 - w) * sm.local_pos[sf] + w * em.local_pos[ef]       # joints with position channels: lerp
     samples = []
-    for name, q, r in zip(_sample_names(args.samples), res["q"], res["r"]):
+    for name, q, r in zip(sample_names(args.samples), res["q"], res["r"]):
         pos = base_pos.copy()
         pos[:, 0] = r
         samples.append((name, [dataclasses.replace(sm, local_quats=q, local_pos=pos)], None))
