@@ -203,7 +203,7 @@ def _infill(args) -> int:
         enable_compilation_cache()                # compiled samplers are reused by the next call
     except OSError:
         pass                                      # an unwritable cache folder only costs compile time
-    files, summary = {"scvae": _run_scvae, "cae": _run_cae, "interaction": _run_interaction}[args.model](args)
+    files, summary = {"scvae": _run_scvae, "interaction": _run_interaction}[args.model](args)
     summary.update(model=args.model, checkpoint=os.path.abspath(args.ckpt), seed=args.seed)
     files["infill.json"] = lambda path: _write_json(path, summary)
     _write_outputs(args.out, files)
@@ -323,36 +323,6 @@ def _run_scvae(args):
         _add_previews(files, args, name, [motion])
     return files, {"start": f"{sp}:{sf}", "end": f"{ep}:{ef}", "frames": args.frames, "samples": args.samples,
                    "step": info["step"]}
-
-
-def _run_cae(args):
-    import numpy as np
-
-    from inbetween_jax.cli_infill import (check_skeleton, checkpoint_step, finite_or_fail, parse_gaps, read_json,
-                                          read_motion)
-    from inbetween_jax.data import Skeleton
-    from inbetween_jax.models.cae_infer import process_motion
-    from inbetween_jax.models.cae_train import META_FILE, load_trained
-    parse_gaps(args.gaps)                                             # syntax first
-    _, step = checkpoint_step(args.ckpt)
-    meta = read_json(os.path.join(args.ckpt, META_FILE), "not a CAE run folder")
-    motion = read_motion(args.bvh)
-    check_skeleton(motion.skeleton, args.bvh, Skeleton.from_dict(meta["skeleton"]))
-    gaps = parse_gaps(args.gaps, motion.num_frames, args.bvh)
-    model = load_trained(args.ckpt, step)
-    res = process_motion(model, motion, gaps, seed=args.seed)
-    finite_or_fail(args.ckpt, res["positions"], res["motion"].local_quats, res["motion"].local_pos)
-    stem = os.path.splitext(os.path.basename(args.bvh))[0]
-    pos = res["positions"]
-    files = {f"{stem}_filled.bvh": _bvh_writer(res["motion"]),
-             f"{stem}_filled.npy": lambda path: _save_npy(path, pos)}
-    gen = np.zeros(motion.num_frames, bool)
-    for a, b in gaps:
-        gen[a:b] = True
-    _add_previews(files, args, f"{stem}_filled", [res["motion"]], gen, "known frames")
-    return files, {"input": args.bvh, "gaps": gaps, "frames": motion.num_frames, "step": step,
-                   "error_cm_mean": res["error_cm"][0], "fk_gap_cm": res["fk_gap_cm"],
-                   "refit_frames": int(np.sum(res["frames"]))}
 
 
 def _save_npy(path, arr) -> None:
