@@ -1,4 +1,4 @@
-"""Convolutional inpainting AE: masks, curriculum, padding, shapes, representation, inference helpers."""
+"""Convolutional inpainting AE: masks, curriculum, padding, shapes, representation, inference helpers, metrics."""
 from __future__ import annotations
 
 import numpy as np
@@ -6,13 +6,23 @@ import pytest
 
 import jax
 import jax.numpy as jnp
-from flax import nnx
 
+from inbetween_jax.baselines import linear_fill
 from inbetween_jax.data import load_motions
-from inbetween_jax.geometry import forward_kinematics
-from inbetween_jax.models import cae
-from inbetween_jax.models import cae_data as cd
-from inbetween_jax.models import cae_infer as ci
+from inbetween_jax.geometry import bone_lengths, forward_kinematics
+from inbetween_jax.geometry.fit import fit_rotations
+from inbetween_jax.geometry.heading import rotate_about_up
+from inbetween_jax.models.cae import features as cf
+from inbetween_jax.models.cae import masks as cm
+from inbetween_jax.models.cae import model as cae
+from inbetween_jax.models.cae.config import get_config
+from inbetween_jax.models.cae.infer import slerp_gaps
+from inbetween_jax.train import apply_overrides
+
+
+def _cfg(variant="cae", channels="2,2,4,4,4", hidden=4, width=5):
+    return apply_overrides(get_config("tiny"), [f"model.variant={variant}", f"model.channels={channels}",
+                                                f"model.holden_hidden={hidden}", f"model.holden_width={width}"])
 
 
 @pytest.fixture(scope="module")
@@ -23,7 +33,7 @@ def motion():
 
 # ----------------------------------------------------------------------------- masks / curriculum
 def test_gap_mask_statistics():
-    mask, lam = cd.gap_mask(jax.random.key(0), 4000, 240, 60.0, 10.0)
+    mask, lam = cm.gap_mask(jax.random.key(0), 4000, 240, 60.0, 10.0)
     mask, lam = np.asarray(mask), np.asarray(lam)
     missing = 1 - mask
     assert np.array_equal(missing.sum(1), lam)                        # mask length = sampled length
@@ -37,17 +47,17 @@ def test_gap_mask_statistics():
     u = start / (240 - lam)
     assert abs(u.mean() - 0.5) < 0.02 and abs(u.var() - 1 / 12) < 0.01
     # clipping keeps degenerate draws inside [1, T - 1]
-    _, lam2 = cd.gap_mask(jax.random.key(1), 2000, 50, 10.0, 40.0)
+    _, lam2 = cm.gap_mask(jax.random.key(1), 2000, 50, 10.0, 40.0)
     assert int(lam2.min()) >= 1 and int(lam2.max()) <= 49
 
 
 def test_joint_mask_and_training_mask():
-    jm = np.asarray(cd.joint_row_mask(jax.random.key(0), 3000, 22, 3))
+    jm = np.asarray(cm.joint_row_mask(jax.random.key(0), 3000, 22, 3))
     removed = (1 - jm).sum(1)
     assert set(np.unique(removed)) == {1, 2, 3}
     assert np.all(np.abs(np.bincount(removed.astype(int))[1:] / 3000 - 1 / 3) < 0.04)
     assert np.all(jm[:, 0] == 1)                                      # the root is never removed
-    m = np.asarray(cd.training_mask(jax.random.key(3), 2000, 22, 240, 60.0, 20.0, 0.3, 3))
+    m = np.asarray(cm.training_mask(jax.random.key(3), 2000, 22, 240, 60.0, 20.0, 0.3, 3))
     assert m.shape == (2000, 69, 240)
     joint_type = (m.max(axis=1) == 1).all(axis=1)                       # no whole column removed
     assert abs(joint_type.mean() - 0.3) < 0.04
@@ -59,16 +69,14 @@ def test_joint_mask_and_training_mask():
 
 
 def test_curriculum_schedule():
-    mus = [cd.curriculum_mu(e) for e in range(70)]
+    mus = [cm.curriculum_mu(e) for e in range(70)]
     assert mus[0] == mus[4] == 10 and mus[5] == 20 and mus[9] == 20 and mus[10] == 30
     assert mus[54] == 110 and mus[55] == 120 and mus[69] == 120
     assert all(b - a in (0, 10) for a, b in zip(mus, mus[1:]))
-    from inbetween_jax.configs.cae import get_config
-    from inbetween_jax.models.cae_train import epoch_mu
-    from inbetween_jax.train import apply_overrides
+    from inbetween_jax.models.cae.train import epoch_mu
     cfg = get_config("tiny")
     assert epoch_mu(cfg, 7) == 20
-    assert epoch_mu(apply_overrides(cfg, ["mask.curriculum=false"]), 100) == 60
+    assert epoch_mu(apply_overrides(cfg, ["data.mask.curriculum=false"]), 100) == 60
 
 
 # ----------------------------------------------------------------------------- padding / shapes
@@ -90,24 +98,27 @@ def test_level_sizes_and_pooling_pad_odd_lengths():
 
 @pytest.mark.parametrize("variant", ["cae", "vanilla", "holden1d"])
 def test_output_shape_equals_input(variant):
-    model = cae.make_model(variant, 69, (2, 2, 4, 4, 4), holden_hidden=4, holden_width=5)
-    gd, params = nnx.split(model)
-    apply = jax.jit(lambda p, x: nnx.merge(gd, p)(x))
+    cfg = _cfg(variant)
+    params = cae.init_params(jax.random.key(0), cfg, 69)
+    assert all(isinstance(v, (dict, list)) for v in params.values())  # plain pytree, no nnx state
+    apply = jax.jit(lambda p, x: cae.apply(p, x, cfg))
     for t in (37, 64, 241, 499):
         y = apply(params, jnp.zeros((1, 69, t)))
         assert y.shape == (1, 69, t), (variant, t)
         assert bool(jnp.all(jnp.isfinite(y)))
     if variant == "cae":
-        z, _ = model.encode(jnp.zeros((1, 69, 240)))
+        z, _ = cae.encode(params, jnp.zeros((1, 69, 240)), cfg)
         assert z.shape == (1, 3, 8, 4)                                 # paper: 3 x 8 latent for 69 x 240
 
 
 @pytest.mark.slow
 def test_output_shape_all_lengths_traced():
     """Every length 37..500 through the CAE, shape-only (traced, not compiled)."""
-    model = cae.make_model("cae", 69, (1, 1, 1, 1, 1))
+    cfg = _cfg("cae", "1,1,1,1,1")
+    params = cae.param_shapes(cfg, 69)
     for t in range(37, 501):
-        assert jax.eval_shape(model, jax.ShapeDtypeStruct((1, 69, t), jnp.float32)).shape == (1, 69, t)
+        assert jax.eval_shape(lambda p, x: cae.apply(p, x, cfg), params,
+                              jax.ShapeDtypeStruct((1, 69, t), jnp.float32)).shape == (1, 69, t)
 
 
 def test_conv_custom_vjp_matches_autodiff():
@@ -123,21 +134,22 @@ def test_conv_custom_vjp_matches_autodiff():
 
 
 def test_xavier_init_scale():
-    conv = cae.Conv(128, 128, rngs=nnx.Rngs(0))
-    w = conv.w[...]
+    layer = cae.init_params(jax.random.key(0), _cfg("cae", "128,1,1,1,1"), 69)["enc"][0][1]
+    w = layer["w"]
+    assert w.shape == (3, 3, 128, 128)
     bound = np.sqrt(6.0 / (9 * 128 + 9 * 128))                         # Glorot uniform, fan = 3*3*C
     assert float(jnp.abs(w).max()) <= bound and float(jnp.abs(w).max()) > 0.9 * bound
-    assert float(jnp.abs(conv.b[...]).max()) == 0.0
+    assert float(jnp.abs(layer["b"]).max()) == 0.0
 
 
 # ----------------------------------------------------------------------------- representation
 def test_representation_round_trip_on_real_motion(motion):
-    f = cd.motion_features(motion)
+    f = cf.body_frame_features(motion)
     j = motion.skeleton.num_joints
     assert f.features.shape == (motion.num_frames, 3 * j + 3)
-    local, vel = cd.split_features(f.features, j)
+    local, vel = cf.split_features(f.features, j)
     np.testing.assert_allclose(local[:, 0, [0, 2]], 0.0, atol=1e-3)   # root at the body-frame origin
-    g = cd.features_to_global(f.features, j, f.ref0, f.yaw0)
+    g = cf.features_to_global(f.features, j, f.ref0, f.yaw0)
     _, gp = forward_kinematics(motion.local_quats, motion.local_pos, motion.skeleton.parents)
     assert np.abs(g - gp).max() < 0.05                                 # cm, after integrating 600 frames
 
@@ -145,39 +157,39 @@ def test_representation_round_trip_on_real_motion(motion):
 def test_facing_forward_on_walking_clips():
     """Subjects 07 / 08 of the embedded set walk: in the body frame they move along +Z, not sideways."""
     walks = [m for m in load_motions("embedded", "train") if m.source.split("/")[-1].startswith(("07_", "08_"))]
-    vel = np.concatenate([cd.split_features(cd.motion_features(m).features, m.skeleton.num_joints)[1]
+    vel = np.concatenate([cf.split_features(cf.body_frame_features(m).features, m.skeleton.num_joints)[1]
                           for m in walks])
     assert vel[:, 1].mean() > 1.0 and vel[:, 1].mean() > 5 * abs(vel[:, 0].mean())
 
 
 def test_yaw_rotate_and_integrate_root():
-    np.testing.assert_allclose(cd.yaw_rotate(np.array([0.0, 1.0]), np.pi / 2), [1.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(rotate_about_up(np.array([0.0, 1.0]), np.pi / 2), [1.0, 0.0], atol=1e-12)
     yaw = np.linspace(0, 3, 50)
     ref = np.cumsum(np.stack([np.sin(yaw), np.cos(yaw)], -1), 0)
     vel = np.zeros((50, 3))
-    vel[1:, :2] = cd.yaw_rotate(ref[1:] - ref[:-1], -yaw[:-1])
+    vel[1:, :2] = rotate_about_up(ref[1:] - ref[:-1], -yaw[:-1])
     vel[1:, 2] = yaw[1:] - yaw[:-1]
-    r2, y2 = cd.integrate_root(vel, ref[0], yaw[0])
+    r2, y2 = cf.integrate_root(vel, ref[0], yaw[0])
     np.testing.assert_allclose(r2, ref, atol=1e-9)
     np.testing.assert_allclose(y2, yaw, atol=1e-12)
 
 
 # ----------------------------------------------------------------------------- inference helpers
 def test_gap_helpers_and_linear_fill():
-    fm = ci.gap_frames(100, [(10, 20), (50, 90)])
-    assert ci.gap_ranges(fm) == [(10, 20), (50, 90)]
+    fm = cm.gap_frames(100, [(10, 20), (50, 90)])
+    assert cm.gap_ranges(fm) == [(10, 20), (50, 90)]
     with pytest.raises(ValueError):
-        ci.gap_frames(10, [(5, 11)])
+        cm.gap_frames(10, [(5, 11)])
     t = np.arange(100, dtype=np.float32)
     x = np.stack([2 * t + 1, -t]) [None]                               # (1, 2, 100) linear rows
     m = np.broadcast_to(fm, x.shape)
-    np.testing.assert_allclose(ci.linear_fill(x * m, m), x, rtol=1e-6)
+    np.testing.assert_allclose(linear_fill(x * m, m), x, rtol=1e-6)
     m2 = np.ones_like(x)
     m2[0, 1] = 0                                                       # a row with nothing known -> 0
-    assert np.all(ci.linear_fill(x, m2)[0, 1] == 0)
-    dm = ci.dropout_mask(np.random.default_rng(0), (4, 500), 22, 0.3)
+    assert np.all(linear_fill(x, m2)[0, 1] == 0)
+    dm = cm.dropout_mask(np.random.default_rng(0), (4, 500), 22, 0.3)
     assert dm.shape == (4, 69, 500) and abs(1 - dm[:, :66].mean() - 0.3) < 0.01 and np.all(dm[:, 66:] == 1)
-    jm = ci.joints_mask(30, 22, [3, 5])
+    jm = cm.joints_mask(30, 22, [3, 5])
     assert jm[9:12].sum() == 0 and jm[15:18].sum() == 0 and jm.sum() == (69 - 6) * 30
 
 
@@ -185,14 +197,47 @@ def test_fit_rotations_points_bones(motion):
     m = motion.slice(0, 120)
     parents = m.skeleton.parents
     _, gp = forward_kinematics(m.local_quats, m.local_pos, parents)
-    fm = ci.gap_frames(120, [(40, 80)])
-    ref_q = ci.slerp_gaps(m.local_quats, fm)
+    fm = cm.gap_frames(120, [(40, 80)])
+    ref_q = slerp_gaps(m.local_quats, fm)
     np.testing.assert_allclose(ref_q[fm > 0.5], m.local_quats[fm > 0.5])   # known frames untouched
-    before = ci.check_fk_positions(ref_q, m.local_pos, parents)
-    lq, lp = ci.fit_rotations(gp, ref_q, m.local_pos, parents, fm < 0.5)
-    after = ci.check_fk_positions(lq, lp, parents)
+    before = forward_kinematics(ref_q, m.local_pos, parents)[1]
+    lq, lp = fit_rotations(gp, ref_q, m.local_pos, parents, fm < 0.5)
+    after = forward_kinematics(lq, lp, parents)[1]
     gap = fm < 0.5
     e_before = np.linalg.norm(before - gp, axis=-1)[gap].mean()
     e_after = np.linalg.norm(after - gp, axis=-1)[gap].mean()
     assert e_after < 0.25 * e_before and e_after < 2.0
     np.testing.assert_allclose(after[~gap], gp[~gap], atol=1e-6)
+
+
+# ----------------------------------------------------------------------------- errors / bone lengths
+def test_position_error_and_bone_spread_match_numpy(motion):
+    """Body-frame joint errors and bone-length spread of real clips against plain NumPy references."""
+    from inbetween_jax.data.features import Normalizer
+    from inbetween_jax.evaluation.infilling import position_error, test_clips
+    from inbetween_jax.metrics import bone_length_spread
+    f = cf.body_frame_features(motion).features
+    norm = Normalizer.fit(f, eps=1e-3)
+    j = motion.skeleton.num_joints
+    x = test_clips([motion], norm, length=120, stride=60)                # (9, 66, 120) real clips
+    assert x.shape == (9, 3 * j + 3, 120)
+    y = x + np.random.default_rng(0).normal(0, 0.1, x.shape).astype(np.float32)
+    frames = np.zeros(x.shape[::2], np.float32)
+    frames[:, 30:70] = 1
+    pos = lambda c: np.swapaxes(norm.inverse(np.swapaxes(c.astype(np.float64), 1, 2)), 1, 2)[:, :3 * j]
+    err = np.linalg.norm((pos(y) - pos(x)).reshape(9, j, 3, 120), axis=2)          # (N, J, T)
+    ref = err[:, :, 30:70]
+    mean, std = position_error(y, x, norm, j, frames)
+    np.testing.assert_allclose([mean, std], [ref.mean(), ref.std()], rtol=1e-5)
+    mean_all, _ = position_error(y, x, norm, j)
+    np.testing.assert_allclose(mean_all, err.mean(), rtol=1e-5)
+    pp, gg = cf.body_positions(y, norm, j), cf.body_positions(x, norm, j)
+    pb = bone_lengths(pp, motion.skeleton.parents).reshape(-1, j - 1)
+    gb = bone_lengths(gg, motion.skeleton.parents).reshape(-1, j - 1)
+    b = bone_length_spread(pp, gg, tuple(motion.skeleton.parents))
+    np.testing.assert_allclose(float(b["median_dev"]), np.mean(np.abs(np.median(pb, 0) - np.median(gb, 0))),
+                               rtol=1e-4)
+    np.testing.assert_allclose(float(b["std"]), np.mean(pb.std(0)), rtol=1e-4)
+    np.testing.assert_allclose(float(b["gt_std"]), np.mean(gb.std(0)), atol=1e-4)   # ~0: FK keeps the bones
+    np.testing.assert_allclose(float(b["iqr"]), np.mean(np.subtract(*np.percentile(pb, [75, 25], 0))), rtol=1e-4)
+    assert float(b["gt_std"]) < 1e-3 and float(b["std"]) > 0.1       # noise spreads the bone lengths

@@ -1,37 +1,44 @@
-"""CAE training on real clips: a tiny model overfits, a run resumes exactly, the CLIs run end to end."""
+"""CAE training on real clips: a tiny model overfits, a run resumes exactly, a run folder restores and infills,
+the benchmark runs end to end."""
 from __future__ import annotations
 
+import argparse
 import json
 import os
-import sys
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
 import pytest
-from flax import nnx
 
-from inbetween_jax.configs.cae import get_config
-from inbetween_jax.models import cae_infer as ci
-from inbetween_jax.models.cae_train import load_trained, prepare_bank, train
+from inbetween_jax.evaluation.infilling import position_error
+from inbetween_jax.models.cae import infer, model
+from inbetween_jax.models.cae.config import get_config
+from inbetween_jax.models.cae.masks import gap_frames
+from inbetween_jax.models.cae.train import load_data, make_training
+from inbetween_jax.runner import train_model
+from inbetween_jax.train import apply_overrides
+from inbetween_jax.train.run import load_run
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(ROOT, "experiments"))
+ASSETS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "inbetween_jax", "assets", "cmu30")
+
+
+def _train(run_dir, overrides, preset="tiny"):
+    return train_model("cae", preset, overrides, source="embedded", run_dir=str(run_dir), progress=False, log=None)
 
 
 def test_tiny_model_overfits_real_clips():
     """4 real 64-frame CMU clips, pure reconstruction: the L1 loss falls 4x and the joint error below 4 cm."""
-    from inbetween_jax.models.cae import make_model
-    cfg = get_config("tiny")
-    bank, _, _ = prepare_bank("embedded", cfg)
+    cfg = apply_overrides(get_config("tiny"), ["model.channels=8,8,16,16,16"])
+    bank = load_data(cfg, "embedded").bank
     x = jnp.asarray(bank.clips(np.array([0, 11, 22, 30])))            # (4, 66, 64) real motion
-    gd, params = nnx.split(make_model("cae", x.shape[1], (8, 8, 16, 16, 16)))
+    params = model.init_params(jax.random.key(0), cfg, x.shape[1])
     tx = optax.adam(3e-3)
 
     @jax.jit
     def step(p, o):
-        loss, g = jax.value_and_grad(lambda p: jnp.mean(jnp.abs(nnx.merge(gd, p)(x) - x)))(p)
+        loss, g = jax.value_and_grad(lambda p: jnp.mean(jnp.abs(model.apply(p, x, cfg) - x)))(p)
         u, o = tx.update(g, o, p)
         return optax.apply_updates(p, u), o, loss
 
@@ -41,62 +48,113 @@ def test_tiny_model_overfits_real_clips():
         params, opt, loss = step(params, opt)
         losses.append(float(loss))
     assert losses[-1] < 0.25 * losses[0], losses[::50]
-    y = nnx.merge(gd, params)(x)
-    err = ci.joint_errors(np.asarray(y), np.asarray(x), bank.normalizer, bank.num_joints)
-    assert err.mean() < 4.0, err.mean()
+    y = model.apply(params, x, cfg)
+    err, _ = position_error(np.asarray(y), np.asarray(x), bank.normalizer, bank.num_joints)
+    assert err < 4.0, err
+
+
+def test_make_training_pieces_and_meta():
+    """``make_training`` on real clips: batch shapes, the curriculum's mu per epoch, finite step metrics."""
+    cfg = get_config("tiny")
+    data = load_data(cfg, "embedded")
+    tr = make_training(cfg, data)
+    assert tr.num_steps == 8 and tr.meta["extra"] == {"num_joints": 21, "clip_length": 64, "steps_per_epoch": 2}
+    assert tr.meta["stats"]["mean"].shape == (66,) and len(tr.meta["data"]["files"]) == 2
+    b = tr.batch_fn(0, jax.random.key(1))
+    assert b["x"].shape == (4, 66, 64) and b["mu"] == 10.0
+    assert tr.batch_fn(2 * 5, jax.random.key(1))["mu"] == 20.0        # epoch 5 (2 steps per epoch)
+    state = tr.init_fn(jax.random.key(0))
+    _, metrics = jax.jit(tr.step_fn)(state, b, jax.random.key(2))
+    assert set(metrics) == {"loss", "hole_l1", "mu"} and all(np.isfinite(float(v)) for v in metrics.values())
 
 
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):
-    run = str(tmp_path_factory.mktemp("cae") / "run")
-    train(run, "embedded", "tiny", ["num_steps=4", "ckpt_every=2"], progress=False)
-    return run
+    run = tmp_path_factory.mktemp("cae") / "run"
+    _train(run, ["train.num_steps=4", "train.ckpt_every=2"])
+    return str(run)
+
+
+def test_run_folder_round_trip(tmp_path):
+    """Train 2 tiny steps, restore from the run folder alone, fill a real clip: finite, same shape."""
+    run_dir, logged = _train(tmp_path / "run", ["train.num_steps=2", "train.log_every=1"])
+    assert [r["step"] for r in logged] == [1, 2]
+    trained = infer.load(load_run(run_dir))
+    assert trained.step == 2 and trained.num_joints == 21 and trained.skeleton.num_joints == 21
+    cfg = get_config("tiny")
+    x = load_data(cfg, "embedded").bank.clips(np.array([0]))[0]      # (66, 64)
+    mask = np.broadcast_to(gap_frames(64, [(20, 40)]), x.shape)
+    y = infer.fill(trained, x, mask)
+    assert y.shape == x.shape and np.all(np.isfinite(y))
+    np.testing.assert_array_equal(infer.fill(trained, x, mask, keep_known=True)[mask > 0.5], x[mask > 0.5])
 
 
 @pytest.mark.slow
 def test_resume_matches_uninterrupted(tiny_run, tmp_path):
-    state_resumed, logged, info = train(tiny_run, "embedded", "tiny", ["num_steps=8", "ckpt_every=2"],
-                                        progress=False)
+    _, logged = _train(tiny_run, ["train.num_steps=8", "train.ckpt_every=2"])
     assert [r["step"] for r in logged] == [6, 8]                       # resumed at 4, not from scratch
-    fresh = str(tmp_path / "fresh")
-    state_fresh, logged_fresh, _ = train(fresh, "embedded", "tiny", ["num_steps=8", "ckpt_every=2"],
-                                         progress=False)
-    for a, b in zip(jax.tree.leaves(state_resumed["params"]), jax.tree.leaves(state_fresh["params"])):
+    fresh = tmp_path / "fresh"
+    _, logged_fresh = _train(fresh, ["train.num_steps=8", "train.ckpt_every=2"])
+    resumed, uninterrupted = infer.load(load_run(tiny_run)), infer.load(load_run(str(fresh)))
+    for a, b in zip(jax.tree.leaves(resumed.params), jax.tree.leaves(uninterrupted.params)):
         np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=1e-5, atol=1e-6)
     assert logged[-1]["loss"] == pytest.approx(logged_fresh[-1]["loss"], rel=1e-5)
-    m = load_trained(tiny_run)
-    assert m.step == 8 and m.num_joints == 21
+    assert resumed.step == 8 and resumed.num_joints == 21
 
 
 @pytest.mark.slow
-def test_infill_cli_writes_positions_and_bvh(tiny_run, tmp_path):
-    import infill_cae
-    from inbetween_jax.data import read_bvh
-    src = os.path.join(ROOT, "inbetween_jax", "assets", "cmu30", "13_10.bvh")
-    out = str(tmp_path / "filled")
-    assert infill_cae.main(["--ckpt", tiny_run, "--bvh", src, "--out", out, "--gap", "100:160",
-                            "--gap", "300:421"]) == 0
-    pos = np.load(out + ".npy")
-    inp, res = read_bvh(src), read_bvh(out + ".bvh")
+def test_infill_writes_positions_and_bvh(tiny_run, tmp_path):
+    from inbetween_jax.data import read_bvh, write_bvh
+    src = os.path.join(ASSETS, "13_10.bvh")
+    run = load_run(tiny_run)
+    res = infer.infill(argparse.Namespace(bvh=src, gaps="100:160,300:421", samples=1, seed=0), run)
+    (name, motions, generated), = res.samples
+    assert name == "13_10_filled" and len(motions) == 1 and res.what == "known frames"
+    res.extra_files["13_10_filled.npy"](str(tmp_path / "filled.npy"))
+    write_bvh(str(tmp_path / "filled.bvh"), motions[0])
+    pos = np.load(tmp_path / "filled.npy")
+    inp, out = read_bvh(src), read_bvh(str(tmp_path / "filled.bvh"))
     assert pos.shape == (inp.num_frames, 21, 3) and np.all(np.isfinite(pos))
-    assert res.num_frames == inp.num_frames
-    keep = ci.gap_frames(inp.num_frames, [(100, 160), (300, 421)]) > 0.5
-    np.testing.assert_allclose(res.local_quats[keep][:, 1:], inp.local_quats[keep][:, 1:], atol=1e-3)
+    assert out.num_frames == inp.num_frames
+    keep = gap_frames(inp.num_frames, [(100, 160), (300, 421)]) > 0.5
+    np.testing.assert_array_equal(generated, ~keep)
+    np.testing.assert_allclose(out.local_quats[keep][:, 1:], inp.local_quats[keep][:, 1:], atol=1e-3)
     # known frames keep the input trajectory
     np.testing.assert_allclose(pos[keep][:, 0, [0, 2]], inp.local_pos[keep][:, 0, [0, 2]], atol=0.05)
-    summary = json.load(open(out + ".json"))
-    assert summary["refit_frames"] == 60 + 121 and summary["error_cm_mean"] > 0
-    assert infill_cae.main(["--ckpt", tiny_run, "--bvh", src, "--out", out + "2", "--joints", "lHand",
-                            "--dropout", "0.3", "--noise", "0.5"]) == 0
+    summary = json.loads(json.dumps(res.summary))
+    assert summary["refit_frames"] == 60 + 121 and summary["error_cm_mean"] > 0 and summary["step"] == run.step
+    other = infer.process_motion(infer.load(run), inp, joints=["lHand"], dropout=0.3, noise=0.5)
+    assert other["positions"].shape == pos.shape and np.all(np.isfinite(other["positions"]))
+    assert other["frames"].all() and other["error_cm"][0] > 0
+
+
+def test_bench_skips_without_runs(tmp_path):
+    from inbetween_jax.models.cae import bench
+    for run_dir in (None, str(tmp_path)):
+        r = bench.run("embedded", str(tmp_path / "results"), run_dir, quick=True)
+        assert r["rows"] == [] and "skipped" in r["markdown"] and "inbetween train cae" in r["markdown"]
+    assert not (tmp_path / "results").exists()
 
 
 @pytest.mark.slow
 def test_bench_quick_runs(tmp_path):
-    """``bench_cae.run(quick=True)`` trains 3-step models, labels them untrained and fills both tables."""
-    import bench_cae
-    r = bench_cae.run("embedded", str(tmp_path), None, quick=True)
-    assert "UNTRAINED" in r["note"]
+    """The bench finds one run per variant under a folder of run folders and fills both tables."""
+    from inbetween_jax.models.cae import bench
+    runs = tmp_path / "runs" / "cae"
+    for variant in ("holden1d", "vanilla", "cae"):
+        _train(runs / variant, [f"model.variant={variant}", "train.num_steps=3"])
+    r = bench.run("embedded", str(tmp_path / "results"), str(runs), quick=True)
+    assert set(r["runs"]) == {"holden1d", "vanilla", "cae"} and r["steps"] == {"holden1d": 3, "vanilla": 3, "cae": 3}
     assert set(r["table1"]) == {"linear", "holden1d", "vanilla", "cae"}
     assert r["table1"]["linear"][0] is None and all(len(v) == 3 for v in r["table1"].values())
     assert set(r["table2"]["cae"]) == {"sigma=1.0", "sigma=1.5", "p=0.3", "p=0.5"}
-    assert os.path.isfile(tmp_path / "cae_bench.md")
+    assert set(r["bones"]) == {"holden1d", "vanilla", "cae"}
+    assert os.path.isfile(tmp_path / "results" / "cae_bench.md")
+    assert "| Linear interpolation | n/a |" in r["markdown"]
+    rec = [x for x in r["rows"] if x["table"] == "cae_table1" and x["variant"] == "cae" and x["frames"] == 60
+           and x["metric"] == "mpjpe_cm"]
+    assert len(rec) == 1 and rec[0]["model"] == "cae" and rec[0]["value"] == pytest.approx(r["table1"]["cae"][1][0])
+    lin = {x["metric"] for x in r["rows"] if x["model"] == "linear"}
+    assert lin == {"mpjpe_cm", "mpjpe_std_cm"}
+    # the linear row of a noise column is the noisy input itself
+    assert r["table2"]["linear"]["sigma=1.0"][0] > r["table2"]["linear"]["p=0.3"][0]

@@ -1,3 +1,4 @@
 """Non-learned in-betweening baselines."""
 from inbetween_jax.baselines.interpolation import interpolate_transition  # noqa: F401
+from inbetween_jax.baselines.linear_fill import linear_fill  # noqa: F401
 from inbetween_jax.baselines.zero_velocity import zero_velocity_transition  # noqa: F401

@@ -1,5 +1,5 @@
-"""Data side of the convolutional inpainting AE: the paper's representation (Sec. 3.1), clip banks,
-training masks and the gap-length curriculum (Sec. 3.3).
+"""The paper's motion representation (Sec. 3.1): motions <-> clip images of feature rows, normalisation
+statistics and the clip bank that training draws from.
 
 Representation.  A frame is ``D = 3J + 3`` numbers: the J joints' 3D positions in the character's body
 frame (origin at the root joint projected on the floor, Y up, rotated so that the character faces +Z;
@@ -7,41 +7,30 @@ joint order as the skeleton, x y z per joint), then the root's floor-plane veloc
 yaw velocity ``w`` (radians).  Velocities are relative to the previous frame and expressed in its body
 frame: ``v_t = R(-yaw_{t-1}) (r_t - r_{t-1})``, ``w_t = wrap(yaw_t - yaw_{t-1})``; frame 0 copies frame 1.
 The facing (yaw) is Holden et al.'s: the normal of the hips' and shoulders' left-right axis in the floor
-plane, Gaussian-smoothed over time (:func:`facing_yaw`).  With 22 joints (LaFAN1) D = 69, as the paper's data.
-A clip is an image ``(D, T)`` -- rows are features, columns frames -- normalised per row with training
-statistics.  Host-side preparation is NumPy; masks and the curriculum are pure jnp with explicit keys.
+plane, Gaussian-smoothed over time (:func:`smoothed_facing_yaw`).  With 22 joints (LaFAN1) D = 69, as the
+paper's data.  A clip is an image ``(D, T)`` -- rows are features, columns frames -- normalised per row with
+training statistics.  Everything here is host-side NumPy (float64 inside, float32 features out); rotations
+about the up axis are :func:`inbetween_jax.geometry.heading.rotate_about_up`.
 """
 from __future__ import annotations
 
 import dataclasses
 from typing import Sequence
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
 from inbetween_jax.data.features import Normalizer
 from inbetween_jax.geometry import forward_kinematics
+from inbetween_jax.geometry.heading import rotate_about_up
 
-__all__ = ["MotionFeatures", "motion_features", "features_to_global", "integrate_root", "yaw_rotate",
-           "ClipBank", "build_clip_bank", "curriculum_mu", "gap_mask", "joint_row_mask", "training_mask",
-           "frames_to_rows_mask", "split_features", "num_features"]
+__all__ = ["num_features", "MotionFeatures", "smoothed_facing_yaw", "positions_to_features", "body_frame_features",
+           "split_features", "body_positions", "integrate_root", "features_to_global", "to_global", "ClipBank",
+           "build_clip_bank"]
 
 
 def num_features(num_joints: int) -> int:
     """D = 3J + 3."""
     return 3 * int(num_joints) + 3
-
-
-def yaw_rotate(xz, yaw):
-    """Rotate floor-plane vectors about +Y by ``yaw``: xz (..., 2), yaw (...) -> (..., 2).
-
-    ``yaw_rotate((0, 1), a) == (sin a, cos a)`` (yaw 0 faces +Z).
-    """
-    xp = jnp if isinstance(xz, jax.Array) or isinstance(yaw, jax.Array) else np
-    c, s = xp.cos(yaw), xp.sin(yaw)
-    x, z = xz[..., 0], xz[..., 1]
-    return xp.stack([x * c + z * s, -x * s + z * c], axis=-1)
 
 
 def _wrap(a):
@@ -85,7 +74,7 @@ def _side_joints(skeleton) -> list:
     return pairs
 
 
-def facing_yaw(global_pos: np.ndarray, skeleton, smooth: float = 4.0) -> np.ndarray:
+def smoothed_facing_yaw(global_pos: np.ndarray, skeleton, smooth: float = 4.0) -> np.ndarray:
     """(T, J, 3) global positions -> (T,) facing yaw (``atan2(fx, fz)``, yaw 0 faces +Z).
 
     As Holden et al.: across = sum of (left - right) over the hip joints and the shoulders, forward =
@@ -111,21 +100,21 @@ def positions_to_features(global_pos: np.ndarray, yaw: np.ndarray) -> np.ndarray
     rel = gp.copy()
     rel[..., 0] -= ref[:, None, 0]
     rel[..., 2] -= ref[:, None, 1]
-    loc_xz = yaw_rotate(rel[..., [0, 2]], -yaw[:, None])
+    loc_xz = rotate_about_up(rel[..., [0, 2]], -yaw[:, None])
     local = np.stack([loc_xz[..., 0], rel[..., 1], loc_xz[..., 1]], axis=-1)  # (T, J, 3)
     vel = np.zeros((t, 3))
     if t > 1:
-        vel[1:, :2] = yaw_rotate(ref[1:] - ref[:-1], -yaw[:-1])
+        vel[1:, :2] = rotate_about_up(ref[1:] - ref[:-1], -yaw[:-1])
         vel[1:, 2] = _wrap(yaw[1:] - yaw[:-1])
         vel[0] = vel[1]
     return np.concatenate([local.reshape(t, 3 * j), vel], axis=1).astype(np.float32)
 
 
-def motion_features(motion, smooth: float = 4.0) -> MotionFeatures:
+def body_frame_features(motion, smooth: float = 4.0) -> MotionFeatures:
     """A :class:`~inbetween_jax.data.Motion` -> :class:`MotionFeatures` (FK through the shared geometry)."""
     _, gp = forward_kinematics(np.asarray(motion.local_quats, np.float64), np.asarray(motion.local_pos, np.float64),
                                motion.skeleton.parents)
-    yaw = facing_yaw(gp, motion.skeleton, smooth)
+    yaw = smoothed_facing_yaw(gp, motion.skeleton, smooth)
     feats = positions_to_features(gp, yaw)
     return MotionFeatures(feats, gp[0, 0, [0, 2]].astype(np.float64), float(yaw[0]), gp.astype(np.float32),
                           getattr(motion, "source", ""))
@@ -144,7 +133,7 @@ def integrate_root(vel: np.ndarray, ref0, yaw0: float):
     """
     vel = np.asarray(vel, np.float64)
     yaw = yaw0 + np.concatenate([[0.0], np.cumsum(vel[1:, 2])])
-    steps = yaw_rotate(vel[1:, :2], yaw[:-1])
+    steps = rotate_about_up(vel[1:, :2], yaw[:-1])
     ref = np.asarray(ref0, np.float64)[None] + np.concatenate([np.zeros((1, 2)), np.cumsum(steps, axis=0)])
     return ref, yaw
 
@@ -153,7 +142,48 @@ def features_to_global(x: np.ndarray, num_joints: int, ref0, yaw0: float) -> np.
     """(T, D) un-normalised features -> (T, J, 3) global positions (root trajectory integrated)."""
     local, vel = split_features(np.asarray(x, np.float64), num_joints)
     ref, yaw = integrate_root(vel, ref0, yaw0)
-    xz = yaw_rotate(local[..., [0, 2]], yaw[:, None])
+    xz = rotate_about_up(local[..., [0, 2]], yaw[:, None])
+    return np.stack([xz[..., 0] + ref[:, None, 0], local[..., 1], xz[..., 1] + ref[:, None, 1]], axis=-1)
+
+
+def body_positions(x_norm, normalizer: Normalizer, num_joints: int) -> np.ndarray:
+    """Normalised clip images (..., D, T) -> body-frame joint positions (..., T, J, 3), float64 (cm)."""
+    f = normalizer.inverse(np.swapaxes(np.asarray(x_norm, np.float64), -1, -2))
+    return split_features(f, num_joints)[0]
+
+
+def to_global(y_norm, normalizer: Normalizer, num_joints: int, ref0, yaw0: float, known_feats=None, frame_mask=None):
+    """One clip (D, T) normalised -> (T, J, 3) global positions.
+
+    Without ``known_feats``: the predicted root velocities are integrated from ``(ref0, yaw0)`` at frame 0.
+    With ``known_feats`` ((T, D) un-normalised input features) and ``frame_mask`` ((T,), 1 = known), the known
+    frames keep the input trajectory and each gap integrates the predicted velocities from the frame before
+    it, with the end mismatch spread linearly over the gap (so the path meets the next known frame).
+    """
+    from inbetween_jax.models.cae.masks import gap_ranges
+    y = normalizer.inverse(np.asarray(y_norm, np.float64).T)
+    if known_feats is None:
+        return features_to_global(y, num_joints, ref0, yaw0)
+    _, vk = split_features(np.asarray(known_feats, np.float64), num_joints)
+    _, vy = split_features(y, num_joints)
+    ref, yaw = integrate_root(vk, ref0, yaw0)
+    t_len = len(ref)
+    for a, b in gap_ranges(frame_mask):
+        start = max(a - 1, 0)
+        seg_ref, seg_yaw = integrate_root(vy[start:b + 1] if b < t_len else vy[start:b],
+                                          ref[start] if a > 0 else ref0, yaw[start] if a > 0 else yaw0)
+        n = b - a
+        if b < t_len:  # spread the mismatch at the known frame b over the gap
+            w = (np.arange(1, n + 1) / (n + 1))[:, None]
+            d_ref, d_yaw = ref[b] - seg_ref[-1], yaw[b] - seg_yaw[-1]
+            seg_ref, seg_yaw = seg_ref[:-1], seg_yaw[:-1]
+        else:
+            w, d_ref, d_yaw = np.zeros((n, 1)), np.zeros(2), 0.0
+        off = 1 if a > 0 else 0
+        ref[a:b] = seg_ref[off:off + n] + w * d_ref
+        yaw[a:b] = seg_yaw[off:off + n] + w[:, 0] * d_yaw
+    local, _ = split_features(y, num_joints)
+    xz = rotate_about_up(local[..., [0, 2]], yaw[:, None])
     return np.stack([xz[..., 0] + ref[:, None, 0], local[..., 1], xz[..., 1] + ref[:, None, 1]], axis=-1)
 
 
@@ -197,67 +227,3 @@ def build_clip_bank(feats: Sequence[MotionFeatures], clip_length: int, normalize
     return ClipBank(np.concatenate(frames), np.concatenate(starts), int(clip_length), normalizer, num_joints)
 
 
-def curriculum_mu(epoch, start: float = 10.0, end: float = 120.0, step: float = 10.0, every: int = 5):
-    """Mean gap length at ``epoch`` (0-based): ``min(end, start + step * (epoch // every))``."""
-    return min(float(end), float(start) + float(step) * (int(epoch) // int(every)))
-
-
-def gap_mask(key, batch: int, length: int, mu, sigma):
-    """One gap of whole columns per clip: length ``round(N(mu, sigma^2))`` clipped to [1, T-1], start
-    uniform in [0, T - length].  Returns ``(mask (B, T) float32, 1 = known / 0 = missing, gap_len (B,))``.
-    """
-    k1, k2 = jax.random.split(key)
-    lam = jnp.round(mu + sigma * jax.random.normal(k1, (batch,)))
-    lam = jnp.clip(lam, 1, length - 1).astype(jnp.int32)
-    tau = jnp.floor(jax.random.uniform(k2, (batch,)) * (length - lam + 1)).astype(jnp.int32)
-    t = jnp.arange(length)[None]
-    missing = (t >= tau[:, None]) & (t < (tau + lam)[:, None])
-    return 1.0 - missing.astype(jnp.float32), lam
-
-
-def joint_row_mask(key, batch: int, num_joints: int, max_joints: int = 3):
-    """1..max_joints distinct non-root joints per clip, missing over the whole clip.
-
-    Returns (B, J) float32, 1 = known / 0 = missing (joint 0, the root, is never removed).
-    """
-    k1, k2 = jax.random.split(key)
-    n = jax.random.randint(k1, (batch, 1), 1, max_joints + 1)
-    score = jax.random.uniform(k2, (batch, num_joints)).at[:, 0].set(2.0)   # root ranks last
-    rank = jnp.argsort(jnp.argsort(score, axis=1), axis=1)
-    return 1.0 - (rank < n).astype(jnp.float32)
-
-
-def frames_to_rows_mask(frame_mask=None, joint_mask=None, num_joints: int = 0, length: int = 0):
-    """Combine a column mask (B, T) and / or a joint mask (B, J) or (B, J, T) into an image mask (B, D, T).
-
-    Joint masks hide the joint's 3 rows; the 3 root-velocity rows follow only the column mask.
-    """
-    parts = []
-    if joint_mask is not None:
-        jm = joint_mask if joint_mask.ndim == 3 else joint_mask[..., None] * jnp.ones((length,))
-        b = jm.shape[0]
-        rows = jnp.repeat(jm, 3, axis=1)                                       # (B, 3J, T)
-        rows = jnp.concatenate([rows, jnp.ones((b, 3, rows.shape[-1]), rows.dtype)], axis=1)
-        parts.append(rows)
-    if frame_mask is not None:
-        parts.append(frame_mask[:, None, :] * jnp.ones((3 * num_joints + 3, 1)))
-    out = parts[0]
-    for p in parts[1:]:
-        out = out * p
-    return out
-
-
-def training_mask(key, batch: int, num_joints: int, length: int, mu, sigma, p_joint: float = 0.3,
-                  max_joints: int = 3):
-    """The paper's training corruption: per clip, with probability ``1 - p_joint`` one gap of columns
-    (:func:`gap_mask`), otherwise 1-3 joints removed over the whole clip (:func:`joint_row_mask`).
-
-    Returns (B, D, T) float32 with 1 = known, 0 = removed (the model sees ``x * mask``).
-    """
-    k1, k2, k3 = jax.random.split(key, 3)
-    cols, _ = gap_mask(k1, batch, length, mu, sigma)
-    col_img = frames_to_rows_mask(frame_mask=cols, num_joints=num_joints, length=length)
-    row_img = frames_to_rows_mask(joint_mask=joint_row_mask(k2, batch, num_joints, max_joints),
-                                  num_joints=num_joints, length=length)
-    use_rows = jax.random.uniform(k3, (batch, 1, 1)) < p_joint
-    return jnp.where(use_rows, row_img, col_img)

@@ -1,0 +1,150 @@
+"""CAE benchmark: the paper's Table 1 (reconstruction / 60 / 120-frame gaps) and Table 2 (de-noising) for
+linear interpolation, the Holden-style 1D-conv AE, the Vanilla AE and the CAE, plus bone-length spread.
+
+``run(source, results_dir, run_dir, quick)``: ``run_dir`` is a CAE run folder or a folder of run folders
+(e.g. ``runs/cae`` holding ``cae/``, ``vanilla/``, ``holden1d/``); every CAE run found is evaluated, one per
+``model.variant`` (the first in name order).  The protocol is :mod:`inbetween_jax.evaluation.infilling`;
+``quick`` evaluates the first 8 test clips only.  Writes ``cae_bench.json`` / ``cae_bench.md`` under
+``results_dir``.
+"""
+from __future__ import annotations
+
+import json
+import os
+import time
+
+LABELS = {"linear": "Linear interpolation", "holden1d": "Holden-style 1D conv AE (60)",
+          "vanilla": "Vanilla AE (60)", "cae": "CAE (ours)"}
+PAPER_T1 = {"linear": ("n/a", "10.45 (± 15.5)", "17.04 (± 24.4)"), "holden1d": ("4.44 (± 6.5)", "15.28 (± 19.1)",
+            "18.26 (± 24.5)"), "vanilla": ("2.79 (± 6.7)", "7.45 (± 11.7)", "13.61 (± 21.6)"),
+            "cae": ("2.75 (± 5.2)", "5.47 (± 8.6)", "7.00 (± 10.6)")}
+VARIANT_ORDER = ("holden1d", "vanilla", "cae")
+TRAIN_HINT = "inbetween train cae --preset cpu --run-dir runs/cae/<variant> [model.variant=vanilla|holden1d]"
+
+__all__ = ["find_runs", "run"]
+
+
+def find_runs(run_dir: str | None) -> dict:
+    """``{variant: Run}`` of the CAE runs (with a checkpoint) in ``run_dir`` or its sub-folders."""
+    from inbetween_jax.train.run import RunError, load_run
+    if not run_dir or not os.path.isdir(run_dir):
+        return {}
+    runs = {}
+    for d in [run_dir] + [os.path.join(run_dir, s) for s in sorted(os.listdir(run_dir))]:
+        if not os.path.isfile(os.path.join(d, "run.json")):
+            continue
+        try:
+            r = load_run(d)
+        except RunError:
+            continue
+        if r.model == "cae":
+            runs.setdefault(r.config.get("model", {}).get("variant", "cae"), r)
+    return runs
+
+
+def _fmt(ms):
+    return "n/a" if ms is None else f"{ms[0]:.2f} (± {ms[1]:.1f})"
+
+
+def _data_name(src: str) -> str:
+    from inbetween_jax.data.datasets import is_lafan1
+    return "lafan1" if is_lafan1(src) else "embedded" if src == "embedded" else "bvh"
+
+
+def run(source: str | None, results_dir: str, run_dir: str | None, quick: bool = False) -> dict:
+    """Evaluate every CAE run of ``run_dir``; returns ``{"markdown", "rows", ...the tables}``."""
+    from inbetween_jax.baselines import linear_fill
+    from inbetween_jax.data import load_motions, resolve_source
+    from inbetween_jax.evaluation import infilling as proto
+    from inbetween_jax.models.cae.infer import fill, load
+
+    runs = find_runs(run_dir)
+    if not runs:
+        why = "no run folder given" if not run_dir else f"no trained CAE run in {run_dir}"
+        return {"markdown": f"CAE benchmark skipped: {why} (train one: `{TRAIN_HINT}`).\n", "rows": [],
+                "skipped": why}
+    t0 = time.time()
+    src = resolve_source(source)
+    models = {v: load(r) for v, r in runs.items()}
+    ref = models.get("cae") or next(iter(models.values()))
+    norm, j = ref.normalizer, ref.num_joints
+    motions = load_motions(src, "test")
+    for v, m in models.items():
+        if not motions[0].skeleton.same_topology(m.skeleton):
+            raise ValueError(f"checkpoint {runs[v].run_dir} was trained on another skeleton "
+                             f"({m.skeleton.num_joints} joints) than {src} ({motions[0].skeleton.num_joints} "
+                             "joints); pass the matching --source")
+    x = proto.test_clips(motions, norm, limit=8 if quick else None)
+    corrupt = proto.corruptions(x, j)
+    methods = ["linear"] + [v for v in VARIANT_ORDER if v in models]
+    tables = {}
+    for meth in methods:
+        predict = linear_fill if meth == "linear" else (lambda inp, mask, m=models[meth]: fill(m, inp, mask))
+        tables[meth] = proto.evaluate_method(predict, x, corrupt, norm, j, ref.skeleton.parents,
+                                             learned=meth != "linear")
+    fps = float(motions[0].fps)
+    result = {"source": src, "note": "trained checkpoints", "runs": {v: r.run_dir for v, r in runs.items()},
+              "num_clips": int(x.shape[0]), "clip_length": int(x.shape[2]), "fps": fps,
+              "test_files": [os.path.basename(m.source) for m in motions],
+              "steps": {v: m.step for v, m in models.items()},
+              "table1": {m: tables[m]["table1"] for m in methods},
+              "table1_seconds": {m: tables[m]["table1_seconds"] for m in methods},
+              "table2": {m: tables[m]["table2"] for m in methods},
+              "bones": {m: tables[m]["bones"] for m in methods if tables[m]["bones"] is not None},
+              "wall_s": time.time() - t0}
+    result["rows"] = _rows(result, methods, _data_name(src))
+    result["markdown"] = _markdown(result, methods)
+    os.makedirs(results_dir, exist_ok=True)
+    with open(os.path.join(results_dir, "cae_bench.json"), "w") as fh:
+        json.dump({k: v for k, v in result.items() if k != "markdown"}, fh, indent=1)
+    with open(os.path.join(results_dir, "cae_bench.md"), "w") as fh:
+        fh.write(result["markdown"])
+    return result
+
+
+def _rows(r, methods, data) -> list:
+    """Flat records: tables ``cae_table1`` (frames, gap_s), ``cae_table2`` (corruption), ``cae_bones``."""
+    from inbetween_jax.evaluation import flat_rows
+    from inbetween_jax.evaluation.infilling import GAPS, GAPS_SECONDS
+    out = []
+    for m in methods:
+        model = None if m == "linear" else "cae"
+        gaps = {g: ms for g, ms in zip(GAPS, r["table1"][m])}
+        gaps.update({g: ms for g, ms in zip(GAPS_SECONDS, r["table1_seconds"][m])})
+        t1 = [{"method": m, "frames": g, "gap_s": round(g / r["fps"], 3), "mpjpe_cm": ms[0], "mpjpe_std_cm": ms[1]}
+              for g, ms in sorted(gaps.items()) if ms is not None]
+        out += flat_rows(t1, "cae_table1", data, model, keys=("frames", "gap_s"))
+        t2 = [{"method": m, "corruption": k, "mpjpe_cm": ms[0], "mpjpe_std_cm": ms[1]}
+              for k, ms in r["table2"][m].items()]
+        out += flat_rows(t2, "cae_table2", data, model, keys=("corruption",))
+        if m in r["bones"]:
+            out += flat_rows([{"method": m, **r["bones"][m]}], "cae_bones", data, model, keys=())
+    return out
+
+
+def _markdown(r, methods) -> str:
+    from inbetween_jax.evaluation import markdown_table
+    from inbetween_jax.evaluation.infilling import PS, SIGMAS
+    fps = r["fps"]
+    t1 = [{"Model": LABELS[m], **{f"{g} Frames": _fmt(v) for g, v in zip((0, 60, 120), r["table1"][m])},
+           "paper 0 / 60 / 120": " / ".join(PAPER_T1[m])} for m in methods]
+    t1s = [{"Model": LABELS[m], **{f"{g} Frames": _fmt(v) for g, v in zip((0, 30, 60), r["table1_seconds"][m])}}
+           for m in methods]
+    keys = [f"sigma={s}" for s in SIGMAS] + [f"p={p}" for p in PS]
+    t2 = [{"Model": LABELS[m], **{k: _fmt(r["table2"][m][k]) for k in keys}} for m in methods]
+    bones = [{"Model": LABELS[m], "median - GT median": b["mean_abs_median_dev_cm"], "std": b["mean_std_cm"],
+              "IQR": b["mean_iqr_cm"], "GT std": b["gt_mean_std_cm"]} for m, b in r["bones"].items()]
+    parts = [
+        f"CAE benchmark -- {r['note']}; data: {r['source']} test split ({', '.join(r['test_files'])}), "
+        f"{r['num_clips']} clips of {r['clip_length']} frames at {fps:.0f} Hz; 3D joint error in cm, "
+        "mean (± std), root-aligned.",
+        markdown_table(t1, ("0 Frames", "60 Frames", "120 Frames", "paper 0 / 60 / 120"),
+                       "Table 1 (gap in frames; scored over the gap)", keys=("Model",)),
+        markdown_table(t1s, ("0 Frames", "30 Frames", "60 Frames"),
+                       f"Table 1b (same durations as the paper's 60 Hz gaps: 30 / 60 frames at {fps:.0f} Hz = "
+                       "1 s / 2 s)", keys=("Model",)),
+        markdown_table(t2, keys, "Table 2 (de-noising; every frame scored; sigma in normalised units; linear "
+                       "row for sigma: the noisy input itself)", keys=("Model",)),
+        markdown_table(bones, ("median - GT median", "std", "IQR", "GT std"),
+                       "Bone lengths on reconstruction (cm): mean over bones", keys=("Model",), digits=2)]
+    return "\n\n".join(parts) + "\n"

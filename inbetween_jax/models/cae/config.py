@@ -1,0 +1,89 @@
+"""Convolutional inpainting AE configuration (Kaufmann et al. 2020, Sec. 3): ``get_config(preset)``.
+
+Frozen dataclasses ``Config(model, data, loss, train)``; override with ``key=value`` strings
+(:func:`inbetween_jax.train.apply_overrides`), e.g. ``model.variant=vanilla model.channels=16,32,64,128,128
+train.batch_size=16 data.mask.curriculum=false``.
+
+Presets:
+
+* ``paper`` -- the paper's model and training: channels (32, 64, 128, 256, 256), Adam at 1e-3, batch 80,
+  200 epochs.  An epoch is ``ceil(#clips at stride data.epoch_stride / batch_size)`` steps of the training
+  data (``data.steps_per_epoch = 0``); ``train.num_steps`` = 200 x 33 = 6600, the 200 epochs of the LaFAN1
+  training files (subjects 1-4, 24 files: 2615 clips at stride 40, 33 steps per epoch).
+* ``cpu`` -- the CPU-bounded real run of ``docs/results/cae.md``: quarter width (half at the last unit),
+  batch 16, 20 steps per epoch, 80 epochs (1600 steps).
+* ``tiny`` -- tests: tiny widths, 64-frame clips from 2 motions, batch 4, 2 steps per epoch, 8 steps.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+from inbetween_jax.train.config import TrainConfig
+
+__all__ = ["ModelConfig", "MaskConfig", "DataConfig", "LossConfig", "Config", "PRESETS", "DEFAULT_PRESET",
+           "get_config"]
+
+PRESETS = ("paper", "cpu", "tiny")
+DEFAULT_PRESET = "cpu"
+
+
+@dataclasses.dataclass(frozen=True)
+class ModelConfig:
+    variant: str = "cae"                        # cae | vanilla | holden1d
+    channels: tuple = (32, 64, 128, 256, 256)   # encoding-unit outputs (paper, Fig. 4)
+    leak: float = 0.2                           # leaky-ReLU slope
+    holden_hidden: int = 256                    # holden1d: hidden channels
+    holden_width: int = 25                      # holden1d: temporal kernel width
+
+
+@dataclasses.dataclass(frozen=True)
+class MaskConfig:
+    """Training corruption (Sec. 3.3): a gap of mean ``mu_e`` (curriculum over epochs) or 1-3 joints removed."""
+    curriculum: bool = True      # mu_e schedule; False -> gaps of fixed mean ``fixed_mu``
+    mu_start: float = 10.0       # "We initialize mu_e to 10, and increase it until 120 by steps of 10 every 5 epochs"
+    mu_end: float = 120.0
+    mu_step: float = 10.0
+    every_epochs: int = 5
+    fixed_mu: float = 60.0       # the paper's "(60)" models
+    sigma: float = 20.0          # gap-length std (fixed)
+    p_joint: float = 0.3         # probability of the joint-row corruption instead of a gap
+    max_joints: int = 3          # 1..max_joints joints removed over the whole clip
+
+
+@dataclasses.dataclass(frozen=True)
+class DataConfig:
+    clip_length: int = 240       # T for training (paper: 240 frames)
+    steps_per_epoch: int = 0     # steps per curriculum epoch; 0: the clips at ``epoch_stride`` / batch_size
+    epoch_stride: int = 40       # clip stride that defines an epoch when steps_per_epoch = 0
+    std_eps: float = 1e-3        # floor of the per-row std (rows that never vary, e.g. root x / z)
+    max_motions: int = 0         # >0: use only the first N training motions (tests)
+    mask: MaskConfig = MaskConfig()
+
+
+@dataclasses.dataclass(frozen=True)
+class LossConfig:
+    """No weights: the paper's loss is the plain L1 error ``mean |X - X_hat|`` over the whole clip (every row
+    and frame, known and missing alike; :func:`inbetween_jax.models.cae.losses.l1_loss`)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Config:
+    model: ModelConfig = ModelConfig()
+    data: DataConfig = DataConfig()
+    loss: LossConfig = LossConfig()
+    train: TrainConfig = TrainConfig(num_steps=200 * 33, batch_size=80, lr=1e-3, log_every=20, ckpt_every=200,
+                                     seed=0)
+
+
+def get_config(preset: str = DEFAULT_PRESET) -> Config:
+    """The ``paper``, ``cpu`` or ``tiny`` preset (see the module docstring)."""
+    if preset == "paper":
+        return Config()
+    if preset == "cpu":
+        return Config(model=ModelConfig(channels=(8, 16, 32, 64, 128)), data=DataConfig(steps_per_epoch=20),
+                      train=TrainConfig(num_steps=80 * 20, batch_size=16, lr=1e-3, log_every=20, ckpt_every=100))
+    if preset == "tiny":
+        return Config(model=ModelConfig(channels=(4, 4, 8, 8, 8), holden_hidden=16, holden_width=5),
+                      data=DataConfig(clip_length=64, max_motions=2, steps_per_epoch=2),
+                      train=TrainConfig(num_steps=4 * 2, batch_size=4, lr=1e-3, log_every=2, ckpt_every=4))
+    raise ValueError(f"unknown CAE preset {preset!r}; choose {', '.join(PRESETS)}")

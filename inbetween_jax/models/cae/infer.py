@@ -1,0 +1,175 @@
+"""Inference with a trained convolutional inpainting AE: restore a run, fill clips, infill a user's motion.
+
+* :func:`load` rebuilds the model from a run folder (``run.json`` + checkpoint) as a :class:`TrainedCAE`;
+* :func:`fill` runs it on ``x * mask`` for one clip image ``(D, T)`` or a batch ``(B, D, T)`` of *normalised*
+  features, any T (raw outputs, as the paper; ``keep_known=True`` pastes the known entries back);
+* :func:`process_motion` corrupts a whole motion (gaps, noise, joint dropout, missing joints), fills it,
+  integrates the root trajectory back (:func:`~inbetween_jax.models.cae.features.to_global`) and fits BVH
+  rotations (:func:`inbetween_jax.geometry.fit.fit_rotations`);
+* :data:`INFILL_OPTIONS` / :func:`infill`: ``inbetween infill --model cae --bvh IN.bvh --gaps 100:160,...``.
+"""
+from __future__ import annotations
+
+import dataclasses
+import functools
+import os
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from inbetween_jax.data.features import Normalizer
+from inbetween_jax.data.skeleton import Skeleton
+from inbetween_jax.geometry import forward_kinematics, quat_slerp
+from inbetween_jax.geometry.fit import fit_rotations
+from inbetween_jax.models.cae import model as cae_model
+from inbetween_jax.models.cae.config import Config
+from inbetween_jax.models.cae.features import body_frame_features, body_positions, num_features, to_global
+from inbetween_jax.models.cae.masks import (add_position_noise, dropout_mask, frame_mask_image, gap_frames,
+                                            gap_ranges, joints_mask)
+from inbetween_jax.models.spec import InfillResult
+from inbetween_jax.train.config import config_from_dict
+from inbetween_jax.train.run import Run, RunError, restore_state
+
+__all__ = ["TrainedCAE", "load", "fill", "slerp_gaps", "process_motion", "INFILL_OPTIONS", "infill"]
+
+INFILL_OPTIONS = {"bvh": "the BVH file to fill",
+                  "gaps": "frame ranges to fill, START:STOP[,START:STOP...] (STOP exclusive)"}
+
+
+class TrainedCAE:
+    """A restored model: ``predict(x_norm (B, D, T)) -> (B, D, T)`` (jitted), its normaliser, skeleton,
+    config, ``num_joints`` and checkpoint ``step``."""
+
+    def __init__(self, params, cfg: Config, normalizer: Normalizer, skeleton: Skeleton, num_joints: int,
+                 step: int):
+        self.params, self.cfg, self.normalizer, self.skeleton, self.step = params, cfg, normalizer, skeleton, step
+        self.num_joints = int(num_joints)
+        self._apply = jax.jit(functools.partial(cae_model.apply, cfg=cfg))
+
+    def predict(self, x_norm):
+        return self._apply(self.params, jnp.asarray(x_norm, jnp.float32))
+
+
+def load(run: Run) -> TrainedCAE:
+    """Restore ``run.step`` of a CAE run folder (:func:`inbetween_jax.train.run.load_run`).
+
+    Raises:
+        RunError: not a CAE run, or the checkpoint does not fit the run's config.
+    """
+    if run.model != "cae":
+        raise RunError(f"{run.run_dir}: holds a {run.model} run, not a cae run")
+    cfg = config_from_dict(Config, run.config)
+    j = int(run.extra["num_joints"])
+    init = functools.partial(cae_model.init_params, cfg=cfg, num_features=num_features(j))
+    from inbetween_jax.train.optim import make_optimizer
+    tx = make_optimizer(cfg.train)
+    target = jax.eval_shape(lambda k: (lambda p: {"params": p, "opt_state": tx.init(p)})(init(k)),
+                            jax.random.key(0))
+    state = restore_state(run, target)
+    normalizer = Normalizer(np.asarray(run.stats["mean"], np.float32), np.asarray(run.stats["std"], np.float32))
+    return TrainedCAE(state["params"], cfg, normalizer, Skeleton.from_dict(run.skeleton), j, run.step)
+
+
+def fill(model, x_norm, mask, keep_known: bool = False, chunk: int = 64) -> np.ndarray:
+    """Model reconstruction of ``x_norm * mask``: (B, D, T) or (D, T) -> same shape.
+
+    ``model`` is a :class:`TrainedCAE` (or any object with ``predict``).
+    """
+    x = np.asarray(x_norm, np.float32)
+    single = x.ndim == 2
+    xb = (x * mask)[None] if single else x * mask
+    out = np.concatenate([np.asarray(model.predict(xb[i:i + chunk])) for i in range(0, len(xb), chunk)])
+    out = out[0] if single else out
+    if keep_known:
+        out = np.where(np.asarray(mask) > 0.5, x, out)
+    return out
+
+
+def slerp_gaps(local_quats, frame_mask) -> np.ndarray:
+    """(T, J, 4) rotations with every gap replaced by a slerp between the frames around it (held at ends)."""
+    q = np.array(local_quats, np.float64, copy=True)
+    t_len = len(q)
+    for a, b in gap_ranges(frame_mask):
+        q0 = q[a - 1] if a > 0 else q[min(b, t_len - 1)]
+        q1 = q[b] if b < t_len else q0
+        w = (np.arange(a, b) - (a - 1)) / (b - a + 1)
+        q[a:b] = quat_slerp(np.broadcast_to(q0, (b - a,) + q0.shape), np.broadcast_to(q1, (b - a,) + q1.shape),
+                            w[:, None])
+    return q
+
+
+def process_motion(model, motion, gaps=(), noise: float = 0.0, dropout: float = 0.0, joints=(), seed: int = 0,
+                   keep_known: bool = False) -> dict:
+    """Corrupt a whole :class:`~inbetween_jax.data.Motion` (any length), fill it with ``model`` and convert back.
+
+    gaps: ``[(start, stop), ...]`` frames to remove; noise: sigma (normalised units) on the position rows;
+    dropout: per-frame joint dropout probability; joints: joint names or indices missing over the whole clip.
+    Returns ``{"positions": (T, J, 3) global positions, "motion": Motion with fitted rotations,
+    "frames": (T,) bool frames refitted, "error_cm": (mean, std) vs the input over the corrupted frames,
+    "fk_gap_cm": mean distance between the BVH's FK and the predicted positions on those frames}``.
+    """
+    from inbetween_jax.metrics import mpjpe
+
+    skel, j = model.skeleton, model.num_joints
+    if not motion.skeleton.same_topology(skel):
+        raise ValueError(f"{motion.source}: skeleton differs from the checkpoint's ({skel.num_joints} joints)")
+    t_len = motion.num_frames
+    feats = body_frame_features(motion)
+    x = model.normalizer(feats.features).T.astype(np.float32)            # (D, T)
+    rng = np.random.default_rng(seed)
+    fm = gap_frames(t_len, gaps)
+    mask = frame_mask_image(fm, j)
+    if joints:
+        idx = [skel.index(n) if isinstance(n, str) else int(n) for n in joints]
+        mask = mask * joints_mask(t_len, j, idx)
+    if dropout > 0:
+        mask = mask * dropout_mask(rng, (t_len,), j, dropout)
+    x_in = add_position_noise(rng, x, j, noise) if noise > 0 else x
+    y = fill(model, x_in, mask, keep_known=keep_known)
+    pos = to_global(y, model.normalizer, j, feats.ref0, feats.yaw0, known_feats=feats.features, frame_mask=fm)
+    scored = (fm < 0.5) if gaps else np.ones(t_len, bool)     # gaps: their frames; otherwise every frame
+    err = mpjpe(body_positions(y, model.normalizer, j), body_positions(x, model.normalizer, j),
+                mask=scored, root_relative=False)
+    refit = scored
+    ref_q = slerp_gaps(motion.local_quats, fm)
+    lq, lp = fit_rotations(pos, ref_q, motion.local_pos, skel.parents, refit)
+    out = dataclasses.replace(motion, local_quats=lq, local_pos=lp)
+    fk = forward_kinematics(np.asarray(lq, np.float64), np.asarray(lp, np.float64), skel.parents)[1]
+    fk_gap = float(np.linalg.norm(fk - pos, axis=-1)[refit].mean()) if refit.any() else 0.0
+    return {"positions": pos.astype(np.float32), "motion": out, "frames": refit,
+            "error_cm": (float(err[0]), float(err[1])), "fk_gap_cm": fk_gap}
+
+
+def _save_npy(path, arr) -> None:
+    with open(path, "wb") as f:                  # np.save(path) would append .npy to a temporary name
+        np.save(f, arr)
+
+
+def infill(args, run: Run) -> InfillResult:
+    """Fill ``args.gaps`` of ``args.bvh`` with the run's model (``args.seed``; ``args.samples`` is not used:
+    the CAE is deterministic).  One sample ``<stem>_filled`` (rotations refitted on the gap frames, swing
+    only) plus ``<stem>_filled.npy``: (T, J, 3) predicted global joint positions.
+
+    Raises:
+        UserError: unreadable BVH, another skeleton, malformed or out-of-range gaps, non-finite output.
+    """
+    from inbetween_jax.data.user_input import check_skeleton, finite_or_fail, parse_gaps, read_motion
+    parse_gaps(args.gaps)                                             # syntax first
+    motion = read_motion(args.bvh)
+    check_skeleton(motion.skeleton, args.bvh, Skeleton.from_dict(run.skeleton))
+    gaps = parse_gaps(args.gaps, motion.num_frames, args.bvh)
+    model = load(run)
+    res = process_motion(model, motion, gaps, seed=args.seed)
+    finite_or_fail(run.run_dir, res["positions"], res["motion"].local_quats, res["motion"].local_pos)
+    stem = os.path.splitext(os.path.basename(args.bvh))[0]
+    pos = res["positions"]
+    gen = np.zeros(motion.num_frames, bool)
+    for a, b in gaps:
+        gen[a:b] = True
+    summary = {"input": args.bvh, "gaps": gaps, "frames": motion.num_frames, "step": model.step,
+               "error_cm_mean": res["error_cm"][0], "fk_gap_cm": res["fk_gap_cm"],
+               "refit_frames": int(np.sum(res["frames"]))}
+    return InfillResult(samples=[(f"{stem}_filled", [res["motion"]], gen)], summary=summary,
+                        extra_files={f"{stem}_filled.npy": functools.partial(_save_npy, arr=pos)},
+                        what="known frames")

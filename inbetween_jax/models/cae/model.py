@@ -1,0 +1,224 @@
+"""Convolutional inpainting autoencoder for motion infilling (Kaufmann et al., "Convolutional Autoencoders
+for Human Motion Infilling", 3DV 2020) and its two network baselines.
+
+A motion clip is an "image" ``x`` of shape ``(B, D, T)``: D feature rows (root-relative joint positions,
+root velocities; see :mod:`inbetween_jax.models.cae.features`) by T frames.  Every model maps
+``(B, D, T) -> (B, D, T)`` for any D >= 1 and T >= 1 (fully convolutional).
+
+Parameters are plain nested dicts / lists of arrays (:func:`init_params`) and :func:`apply` is a pure function
+``apply(params, x, cfg)`` (``cfg``: the :class:`~inbetween_jax.models.cae.config.Config`, used as static
+Python values).  A conv layer is ``{"b": (Cout,), "w": (kh, kw, Cin, Cout)}``; the CAE / Vanilla AE hold
+``{"dec": [unit, ...], "enc": [unit, ...]}`` with a unit a list of one or two convs, the Holden AE
+``{"dec": conv, "enc": conv}``.
+
+Variants (``cfg.model.variant``):
+
+* ``"cae"`` -- the paper's model (Fig. 4): 5 encoding units of two 3x3 convs + leaky ReLU followed by a
+  2x2 max-pool; a mirrored, weight-decoupled decoder whose units are a stride-2 3x3 transposed conv then a
+  3x3 conv (leaky ReLU after each, none on the very last output).  Channels (32, 64, 128, 256, 256) give a
+  3 x 8 x 256 latent for a 69 x 240 input, as in the paper.
+* ``"vanilla"`` -- the paper's "Vanilla AE": one strided 3x3 conv per encoding unit and one strided 3x3
+  transposed conv per decoding unit (same channels).
+* ``"holden1d"`` -- a Holden et al. style 1D temporal conv AE: features are channels, one conv of width 25
+  (D -> 256) + ReLU + max-pool over time, nearest-neighbour un-pooling and a width-25 conv back to D.
+
+Odd sizes (pad / crop).  Pooling is "ceil" pooling: before each 2x pooling an odd axis is padded by one
+row / frame with ``-inf`` (so the pad never wins the max; TF's ``padding='SAME'``).  Each decoder unit
+upsamples by 2 and crops the result to the size the matching encoder level had, so the output always has
+the input's exact shape (e.g. 69 x 240 -> 35 x 120 -> 18 x 60 -> 9 x 30 -> 5 x 15 -> 3 x 8 and back).
+The feature axis is only pooled while it is >= 3 rows high.
+
+All convolutions are stride-1 "SAME" convs through :func:`conv_same`, whose custom VJP computes the weight
+gradient as kh*kw shifted-slice matmuls (XLA:CPU's own conv weight gradient is slow).  A stride-2
+transposed conv is a stride-1 conv over the zero-dilated input (equivalent up to the kernel flip, which a
+learned kernel absorbs); a stride-2 conv is a stride-1 conv sampled every second row / frame.
+Weights use Xavier (Glorot) uniform initialisation, biases zero; :func:`init_params` draws them from one
+key split over the parameter leaves in their flattening order (``dec`` before ``enc``, ``b`` before ``w``).
+"""
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+__all__ = ["conv_same", "max_pool_ceil", "upsample_zeros", "level_sizes", "VARIANTS", "param_shapes",
+           "init_params", "apply", "encode", "decode", "conv", "num_params"]
+
+VARIANTS = ("cae", "vanilla", "holden1d")
+_DN = ("NHWC", "HWIO", "NHWC")
+
+
+def _conv(x, w):
+    return jax.lax.conv_general_dilated(x, w, (1, 1), "SAME", dimension_numbers=_DN)
+
+
+@jax.custom_vjp
+def conv_same(x, w):
+    """Stride-1 'SAME' 2D convolution.  x: (B, H, W, Cin); w: (kh, kw, Cin, Cout) with odd kh, kw.
+
+    Returns (B, H, W, Cout).  Same value as ``lax.conv_general_dilated``; only the backward pass differs.
+    """
+    return _conv(x, w)
+
+
+def _conv_fwd(x, w):
+    return _conv(x, w), (x, w)
+
+
+def _conv_bwd(res, g):
+    x, w = res
+    kh, kw, cin, _ = w.shape
+    (dx,) = jax.linear_transpose(lambda x_: _conv(x_, w), x)(g)   # no dead forward conv in the jaxpr
+    h, wd = x.shape[1], x.shape[2]
+    xp = jnp.pad(x, ((0, 0), (kh // 2, kh // 2), (kw // 2, kw // 2), (0, 0)))
+    g2 = g.reshape(-1, g.shape[-1])
+    dw = jnp.stack([jnp.stack([
+        jnp.dot(xp[:, i:i + h, j:j + wd, :].reshape(-1, cin).T, g2, preferred_element_type=jnp.float32)
+        for j in range(kw)]) for i in range(kh)])
+    return dx, dw.astype(w.dtype)
+
+
+conv_same.defvjp(_conv_fwd, _conv_bwd)
+
+
+def max_pool_ceil(x, pool_h: bool = True):
+    """2x max-pool over (H if ``pool_h``) and W, padding an odd axis with -inf first.
+
+    x: (B, H, W, C) -> (B, ceil(H/2) or H, ceil(W/2), C).
+    """
+    b, h, w, c = x.shape
+    fh = 2 if pool_h else 1
+    ph, pw = (-h) % fh, (-w) % 2
+    if ph or pw:
+        x = jnp.pad(x, ((0, 0), (0, ph), (0, pw), (0, 0)), constant_values=-jnp.inf)
+    h2, w2 = (h + ph) // fh, (w + pw) // 2
+    return x.reshape(b, h2, fh, w2, 2, c).max(axis=(2, 4))
+
+
+def upsample_zeros(x, up_h: bool = True):
+    """Zero-insertion upsampling (the input of a stride-2 transposed conv).
+
+    x: (B, H, W, C) -> (B, 2H or H, 2W, C) with x at the even positions.
+    """
+    b, h, w, c = x.shape
+    fh = 2 if up_h else 1
+    out = jnp.zeros((b, h * fh, w * 2, c), x.dtype)
+    return out.at[:, ::fh, ::2].set(x)
+
+
+def level_sizes(height: int, length: int, levels: int = 5) -> list:
+    """(H, W) at every encoder level, input first: ``level_sizes(69, 240)[-1] == (3, 8)``.
+
+    Returns ``levels + 1`` pairs; W halves (ceil) each level, H only while it is >= 3.
+    """
+    sizes = [(int(height), int(length))]
+    for _ in range(levels):
+        h, w = sizes[-1]
+        sizes.append(((h + 1) // 2 if h >= 3 else h, (w + 1) // 2))
+    return sizes
+
+
+
+# ----------------------------------------------------------------------------- parameters
+def _layer(cin: int, cout: int, kernel=(3, 3)) -> dict:
+    return {"b": jax.ShapeDtypeStruct((int(cout),), jnp.float32),
+            "w": jax.ShapeDtypeStruct(tuple(kernel) + (int(cin), int(cout)), jnp.float32)}
+
+
+def _check_variant(variant: str) -> None:
+    if variant not in VARIANTS:
+        raise ValueError(f"unknown CAE variant {variant!r}; choose one of {VARIANTS}")
+
+
+def param_shapes(cfg, num_features: int) -> dict:
+    """The parameter tree of ``cfg.model`` as ``jax.ShapeDtypeStruct`` leaves (see the module docstring).
+
+    ``num_features`` (D) only matters for ``holden1d`` (its convs map D <-> hidden channels).
+    """
+    m = cfg.model
+    _check_variant(m.variant)
+    if m.variant == "holden1d":
+        return {"dec": _layer(m.holden_hidden, num_features, (1, m.holden_width)),
+                "enc": _layer(num_features, m.holden_hidden, (1, m.holden_width))}
+    channels = tuple(int(c) for c in m.channels)
+    ins = (1,) + channels[:-1]
+    reps = 2 if m.variant == "cae" else 1
+    enc = [[_layer(ci if r == 0 else co, co) for r in range(reps)] for ci, co in zip(ins, channels)]
+    dec = []   # decoder unit u mirrors encoder unit L-1-u: c_in -> (c_in ->) target
+    for ci, co in zip(reversed(channels), reversed(ins)):
+        dec.append([_layer(ci, ci), _layer(ci, co)] if reps == 2 else [_layer(ci, co)])
+    return {"dec": dec, "enc": enc}
+
+
+def init_params(key, cfg, num_features: int) -> dict:
+    """Xavier-uniform weights (biases zero) drawn from ``key``: one subkey per leaf, in flattening order.
+
+    key: a PRNG key; cfg: the model's Config; num_features: D.  Returns the nested dict of float32 arrays.
+    """
+    leaves, tree = jax.tree.flatten(param_shapes(cfg, num_features))
+    keys = jax.random.split(key, len(leaves))
+    init = jax.nn.initializers.xavier_uniform()
+    return jax.tree.unflatten(tree, [init(k, s.shape, s.dtype) if len(s.shape) >= 2 else jnp.zeros(s.shape, s.dtype)
+                                     for k, s in zip(keys, leaves)])
+
+
+def num_params(params) -> int:
+    return int(sum(x.size for x in jax.tree.leaves(params)))
+
+
+# ----------------------------------------------------------------------------- apply
+def conv(layer: dict, x):
+    """'SAME' conv with bias: ``layer = {"b", "w": (kh, kw, Cin, Cout)}``; (B, H, W, Cin) -> (B, H, W, Cout)."""
+    return conv_same(x, layer["w"]) + layer["b"]
+
+
+def encode(params: dict, x, cfg):
+    """CAE / Vanilla AE encoder: (B, D, T) -> (latent (B, h, w, C), sizes [(H, W) per level, input first])."""
+    m = cfg.model
+    h = x[..., None]
+    sizes = [h.shape[1:3]]
+    for unit in params["enc"]:
+        pool_h = h.shape[1] >= 3
+        if m.variant == "cae":
+            for layer in unit:
+                h = jax.nn.leaky_relu(conv(layer, h), float(m.leak))
+            h = max_pool_ceil(h, pool_h)
+        else:  # strided conv: stride-1 SAME conv sampled at even positions (ceil(n/2) outputs)
+            h = jax.nn.leaky_relu(conv(unit[0], h), float(m.leak))
+            h = h[:, ::2 if pool_h else 1, ::2]
+        sizes.append(h.shape[1:3])
+    return h, sizes
+
+
+def decode(params: dict, z, sizes, cfg):
+    """CAE / Vanilla AE decoder: latent (B, h, w, C) + encoder sizes -> (B, D, T)."""
+    leak = float(cfg.model.leak)
+    h = z
+    n = len(params["dec"])
+    for u, unit in enumerate(params["dec"]):
+        th, tw = sizes[n - 1 - u]
+        h = upsample_zeros(h, th > h.shape[1])
+        for r, layer in enumerate(unit):
+            h = conv(layer, h)
+            if r == 0:
+                h = h[:, :th, :tw]
+            if not (u == n - 1 and r == len(unit) - 1):
+                h = jax.nn.leaky_relu(h, leak)
+    return h[..., 0]
+
+
+def _holden(params: dict, x):
+    """conv(width W, D -> hidden) + ReLU + max-pool(2, time, ceil) -> nearest un-pool -> conv(hidden -> D)."""
+    t = x.shape[-1]
+    h = jnp.swapaxes(x, 1, 2)[:, None]                                  # (B, 1, T, D)
+    h = max_pool_ceil(jax.nn.relu(conv(params["enc"], h)), pool_h=False)  # (B, 1, ceil(T/2), H)
+    h = jnp.repeat(h, 2, axis=2)[:, :, :t]
+    return jnp.swapaxes(conv(params["dec"], h)[:, 0], 1, 2)
+
+
+def apply(params: dict, x, cfg):
+    """The network of ``cfg.model.variant``: (B, D, T) -> (B, D, T) for any T >= 1."""
+    _check_variant(cfg.model.variant)
+    if cfg.model.variant == "holden1d":
+        return _holden(params, x)
+    z, sizes = encode(params, x, cfg)
+    return decode(params, z, sizes, cfg)
