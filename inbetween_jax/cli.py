@@ -361,49 +361,5 @@ def _save_npy(path, arr) -> None:
         np.save(f, arr)
 
 
-def _run_interaction(args):
-    import numpy as np
-
-    from inbetween_jax.cli_infill import (check_skeleton, features_to_motion, finite_or_fail,
-                                          interaction_checkpoint, interaction_infill, same_skeleton)
-    from inbetween_jax.models.interaction_data import motion_features
-    info = interaction_checkpoint(args.ckpt)
-    cfg = info["cfg"]
-    n_in = cfg.data.n_input
-    cache = {}
-    chars = []
-    for opt, kopt, spec, kspec in (("--a", "--key-a", args.a, args.key_a), ("--b", "--key-b", args.b, args.key_b)):
-        path, m, start = _keyframe(spec, opt, -1, cache)
-        kpath, km, kf = _keyframe(kspec, kopt, -1, cache)
-        check_skeleton(m.skeleton, path, info["skeleton"], info["num_joints"])
-        same_skeleton(km.skeleton, kpath, m.skeleton, path)
-        if start < n_in - 1:
-            raise UserError(f"{opt} {path}:{start}: the model needs {n_in} frames of context up to the start frame; "
-                            f"choose a start frame >= {n_in - 1}")
-        chars.append((path, m, start, kpath, km, kf))
-    (pa, ma, _, _, _, _), (pb, mb, _, _, _, _) = chars
-    if abs(ma.frame_time - mb.frame_time) > 1e-6:
-        raise UserError(f"{pb}: {mb.fps:.3f} fps differs from {pa} ({ma.fps:.3f} fps)")
-    if args.frames > cfg.model.max_frames:
-        raise UserError(f"--frames {args.frames}: this interaction checkpoint rolls out at most "
-                        f"{cfg.model.max_frames} frames (model.max_frames)")
-    context = np.stack([motion_features(m)[s - n_in + 1:s + 1] for _, m, s, _, _, _ in chars])
-    keys = np.stack([motion_features(km.slice(kf, kf + 1))[0] for _, _, _, _, km, kf in chars])
-    feats = interaction_infill(args.ckpt, info, context, keys, args.frames, args.samples, args.seed)
-    finite_or_fail(args.ckpt, feats)
-    files = {}
-    for i, name in enumerate(_names(args.samples)):
-        motions = []
-        for c, (path, m, s, _, km, kf) in enumerate(chars):
-            motion = features_to_motion(feats[i, c], m, s, km, kf)
-            finite_or_fail(args.ckpt, motion.local_quats, motion.local_pos)
-            files[f"{name}_{'AB'[c]}.bvh"] = _bvh_writer(motion)
-            motions.append(motion)
-        _add_previews(files, args, name, motions, what="start / keyframe")
-    return files, {"a": f"{pa}:{chars[0][2]}", "b": f"{pb}:{chars[1][2]}", "key_a": f"{chars[0][3]}:{chars[0][5]}",
-                   "key_b": f"{chars[1][3]}:{chars[1][5]}", "frames": args.frames, "samples": args.samples,
-                   "step": info["step"]}
-
-
 if __name__ == "__main__":
     sys.exit(main())

@@ -10,7 +10,7 @@ Canonical spaces.  S-CVAE keyframes are put in the space of the training windows
 training windows use the mean over the window, which the network never sees: it is only fed velocities and
 offsets between frames -- and turned so that the start keyframe faces +X), and the samples are mapped back
 with the inverse rigid motion.  Interaction inputs go to each character's keyframe space exactly as
-:func:`inbetween_jax.models.interaction_data.keyframe_sample` does for training samples.
+:func:`inbetween_jax.models.interaction.features.keyframe_sample` does for training samples.
 """
 from __future__ import annotations
 
@@ -293,71 +293,3 @@ def parse_gaps(text: str, num_frames=None, path: str = "") -> list:
             raise UserError(f"--gaps {text!r}: the gaps cover all {num_frames} frames of {path}; nothing is left "
                             "to fill from")
     return sorted(gaps)
-
-
-# ----------------------------------------------------------------------------- interaction
-def interaction_checkpoint(ckpt_dir: str) -> dict:
-    """Config and metadata of an interaction run folder without loading its weights."""
-    from inbetween_jax.configs.interaction import get_config
-    from inbetween_jax.train import apply_overrides
-    _, step = checkpoint_step(ckpt_dir)
-    meta = read_json(os.path.join(ckpt_dir, "interaction_meta.json"), "not an interaction run folder")
-    try:
-        cfg = apply_overrides(get_config(meta["variant"]), meta["overrides"])
-        num_joints, fa = int(meta["num_joints"]), np.asarray(meta["forward_axis"], np.float64)
-    except (KeyError, TypeError, ValueError) as e:
-        raise UserError(f"{ckpt_dir}: interaction_meta.json is incomplete ({e})") from None
-    return {"cfg": cfg, "step": step, "meta": meta, "num_joints": num_joints, "forward_axis": fa,
-            "skeleton": training_skeleton(meta.get("source"))}
-
-
-def interaction_infill(run_dir: str, info: dict, context, keyframes, frames: int, num_samples: int,
-                       seed: int = 0) -> np.ndarray:
-    """Roll the interaction network out for ``frames`` frames after two characters' context windows.
-
-    context: (2, n_input, J, 9) world features (positions + forward/up of global rotations) of the frames
-    up to the start frame; keyframes: (2, J, 9) world features of the keyposes.  The network has no
-    time-to-arrival input: it is rolled out for exactly ceil(frames / n_pred) steps (no early stop) and the
-    first ``frames`` frames are kept.  Returns (S, 2, frames, J, 9) world features.
-    """
-    from inbetween_jax.models.interaction import sample_rollouts
-    from inbetween_jax.models.interaction_data import (apply_space, relative_space, root_space, scale_positions,
-                                                       to_space)
-    from inbetween_jax.models.interaction_eval import restore_run
-    cfg, fa = info["cfg"], info["forward_axis"]
-    R, t = root_space(keyframes[:, 0], fa)                                      # (2, 3, 3), (2, 3)
-    rel_R, rel_t = relative_space(R, t, R[::-1], t[::-1])
-    b = {"x": to_space(context, R[:, None], t[:, None])[None], "keypose": to_space(keyframes, R, t)[None],
-         "rel_R": rel_R[None], "rel_t": rel_t[None], "world_R": R[None], "world_t": t[None]}
-    b = {k: v.astype(np.float32) for k, v in scale_positions(b, cfg.data.pos_scale).items()}
-    _, nets, params, _ = restore_run(run_dir, info["step"])
-    steps = -(-frames // cfg.data.n_pred)
-    fn = jax.jit(lambda p, w, kp, rr, rt, k: sample_rollouts(nets, p, w, kp, rr, rt, k, cfg, fa.astype(np.float32),
-                                                            steps, num_samples, threshold=-1.0)[0])
-    out = np.asarray(fn(params, b["x"], b["keypose"], b["rel_R"], b["rel_t"], jax.random.key(seed)),
-                     np.float64)[:, 0, :, :frames]                               # (S, 2, frames, J, 9)
-    out[..., :3] /= cfg.data.pos_scale
-    return apply_space(out, R[None, :, None], t[None, :, None])
-
-
-def features_to_motion(feats, motion, start: int, key_motion, key_frame: int):
-    """A character's generated world features (T, J, 9) -> a Motion on ``motion``'s skeleton holding
-    [frame ``start`` of ``motion``, the T generated frames, frame ``key_frame`` of ``key_motion``].
-
-    Rotations: the predicted global rotations (forward / up) made local, then every bone swung onto the
-    predicted position of its main child with :func:`inbetween_jax.models.cae_infer.fit_rotations`
-    (swing-only; twist from the predicted rotations; bone lengths are the skeleton's, so the written
-    positions differ from the network's by its bone-length error).
-    """
-    import dataclasses
-    from inbetween_jax.geometry import quat_from_forward_up, quat_normalize
-    from inbetween_jax.geometry.fit import fit_rotations
-    skel = motion.skeleton
-    gq = quat_normalize(quat_from_forward_up(np.asarray(feats[..., 3:], np.float64)))
-    par = np.asarray(skel.parents[1:])
-    lq = np.concatenate([gq[:, :1], quat_mul(quat_inv(gq[:, par]), gq[:, 1:])], axis=1)
-    lp = np.broadcast_to(motion.local_pos[start], lq.shape[:-1] + (3,)).copy()
-    lq, lp = fit_rotations(feats[..., :3], lq, lp, skel.parents, np.ones(len(lq), bool))
-    q = np.concatenate([motion.local_quats[start][None], lq, key_motion.local_quats[key_frame][None]])
-    p = np.concatenate([motion.local_pos[start][None], lp, key_motion.local_pos[key_frame][None]])
-    return dataclasses.replace(motion, local_quats=quat_fix_sign_np(quat_normalize(q)), local_pos=p)

@@ -1,3 +1,4 @@
 """Non-learned in-betweening baselines."""
 from inbetween_jax.baselines.interpolation import interpolate_transition  # noqa: F401
 from inbetween_jax.baselines.zero_velocity import zero_velocity_transition  # noqa: F401
+from inbetween_jax.baselines.two_character import two_character_interpolation  # noqa: F401
