@@ -12,12 +12,14 @@ import numpy as np
 import pytest
 from flax import nnx
 
-from inbetween_jax.configs.interaction import get_config
 from inbetween_jax.data.datasets import EMBEDDED_DIR
 from inbetween_jax.geometry import dct, idct
-from inbetween_jax.models import interaction as ia
-from inbetween_jax.models import interaction_data as idata
-from inbetween_jax.models import interaction_nets as inets
+from inbetween_jax.geometry.heading import yaw_matrix
+from inbetween_jax.models.interaction import data as idata
+from inbetween_jax.models.interaction import features as ifeat
+from inbetween_jax.models.interaction import layers as inets
+from inbetween_jax.models.interaction import model as ia
+from inbetween_jax.models.interaction.config import get_config
 
 CFG = get_config("tiny")
 
@@ -28,7 +30,7 @@ def pairs():
 
 
 def _rand_space(rng, shape):
-    return idata.yaw_matrix(rng.uniform(-np.pi, np.pi, shape)), rng.normal(0, 2, shape + (3,)) * [1, 0, 1]
+    return yaw_matrix(rng.uniform(-np.pi, np.pi, shape)), rng.normal(0, 2, shape + (3,)) * [1, 0, 1]
 
 
 def test_dct_idct_round_trip():
@@ -80,10 +82,10 @@ def test_spaces_are_invertible(pairs):
     rng = np.random.default_rng(3)
     feats = pairs[0].feats[:, :30].astype(np.float64)                       # (2, 30, J, 9) real frames
     R, t = _rand_space(rng, (2,))
-    back = idata.apply_space(idata.to_space(feats, R[:, None], t[:, None]), R[:, None], t[:, None])
+    back = ifeat.apply_space(ifeat.to_space(feats, R[:, None], t[:, None]), R[:, None], t[:, None])
     np.testing.assert_allclose(back, feats, atol=1e-6)
     # cross-space transform (Eq. 2) and its inverse on a batch of real samples
-    s = idata.keyframe_sample(pairs[0].feats, 0, 30, 25, pairs[0].forward_axis)
+    s = ifeat.keyframe_sample(pairs[0].feats, 0, 30, 25, pairs[0].forward_axis)
     coarse = jnp.asarray(s["x"][None], jnp.float32) * jnp.asarray([0.01] * 3 + [1] * 6)
     rel_R, rel_t = jnp.asarray(s["rel_R"][None]), jnp.asarray(s["rel_t"][None]) * 0.01
     fa = pairs[0].forward_axis
@@ -93,9 +95,9 @@ def test_spaces_are_invertible(pairs):
     other_in_own = ia.cross_space(coarse[:, ::-1], rel_R[:, ::-1], rel_t[:, ::-1], fa)   # sanity: finite
     assert np.all(np.isfinite(np.asarray(other_in_own)))
     # relative_space agrees with going through the world
-    world = idata.apply_space(s["x"][0], s["world_R"][0], s["world_t"][0])
-    in_b = idata.to_space(world, s["world_R"][1], s["world_t"][1])
-    np.testing.assert_allclose(idata.apply_space(s["x"][0], s["rel_R"][0], s["rel_t"][0]), in_b, atol=1e-3)
+    world = ifeat.apply_space(s["x"][0], s["world_R"][0], s["world_t"][0])
+    in_b = ifeat.to_space(world, s["world_R"][1], s["world_t"][1])
+    np.testing.assert_allclose(ifeat.apply_space(s["x"][0], s["rel_R"][0], s["rel_t"][0]), in_b, atol=1e-3)
 
 
 @pytest.mark.parametrize("mirror", [False, True])
@@ -105,7 +107,7 @@ def test_keyframe_sampling_origin_and_forward(pairs, mirror):
     b = idata.sample_batch(tr, rng, 16, length=50, key_range=(25, 30), mirror=mirror)
     kp = b["keypose"]                                                        # (B, 2, J, 9)
     np.testing.assert_allclose(kp[..., 0, [0, 2]], 0.0, atol=1e-5)          # keyframe root at the origin
-    yaw = idata.facing_yaw(kp[..., 0, :].astype(np.float64), tr[0].forward_axis)
+    yaw = ifeat.facing_yaw(kp[..., 0, :].astype(np.float64), tr[0].forward_axis)
     np.testing.assert_allclose(np.cos(yaw), 1.0, atol=1e-4)                 # ... facing +Z
     # the keyframe lies inside the window here: the window's frame equals the keypose
     found = [np.min(np.abs(b["x"][i] - kp[i][:, None]).max(axis=(0, 2, 3))) for i in range(16)]
@@ -116,8 +118,8 @@ def test_keyframe_sampling_origin_and_forward(pairs, mirror):
 def test_mirror_is_an_involution(pairs):
     f = pairs[0].feats[:, :10]
     mm = pairs[0].skeleton.mirror_map()
-    np.testing.assert_allclose(idata.mirror_feats(idata.mirror_feats(f, mm), mm), f)
-    assert not np.allclose(idata.mirror_feats(f, mm), f)
+    np.testing.assert_allclose(ifeat.mirror_feats(ifeat.mirror_feats(f, mm), mm), f)
+    assert not np.allclose(ifeat.mirror_feats(f, mm), f)
 
 
 def test_paired_bvh_loader_real_files(tmp_path):
@@ -138,8 +140,8 @@ def test_constructed_pair_faces_partner(pairs):
     p = pairs[0]
     assert p.constructed
     r = p.feats[:, 0, 0]
-    ya = idata.facing_yaw(r[0].astype(np.float64), p.forward_axis)
-    yb = idata.facing_yaw(r[1].astype(np.float64), p.forward_axis)
+    ya = ifeat.facing_yaw(r[0].astype(np.float64), p.forward_axis)
+    yb = ifeat.facing_yaw(r[1].astype(np.float64), p.forward_axis)
     assert abs(np.cos(ya - yb) + 1) < 1e-4                                   # facing each other
     d = (r[1, :3] - r[0, :3]) * [1, 0, 1]
     np.testing.assert_allclose(np.linalg.norm(d), 150.0, atol=1e-3)
@@ -147,12 +149,12 @@ def test_constructed_pair_faces_partner(pairs):
 
 
 def test_rollout_stops_at_threshold(pairs):
-    nets, params = ia.init_params(jax.random.key(0), pairs[0].feats.shape[2], CFG)
+    params = ia.init_params(jax.random.key(0), CFG, pairs[0].feats.shape[2])
     tr = idata.split_pairs(pairs, "train")
     b = idata.sample_batch(tr, np.random.default_rng(5), 3, 50, (50, 70))
     w = b["x"][:, :, :20]
     fa = tr[0].forward_axis
-    run = jax.jit(lambda thr: ia.rollout(nets, params, w, b["keypose"], b["rel_R"], b["rel_t"], jax.random.key(1),
+    run = jax.jit(lambda thr: ia.rollout(params, w, b["keypose"], b["rel_R"], b["rel_t"], jax.random.key(1),
                                          CFG, fa, 5, threshold=thr))
     frames, length = run(1e9)                                                 # reached after the first step
     assert frames.shape == (3, 2, 50) + w.shape[3:]
@@ -168,6 +170,58 @@ def test_rollout_stops_at_threshold(pairs):
     expect = [10 * (int(np.argmax(row < thr)) + 1) if np.any(row < thr) else 50 for row in d]
     assert np.asarray(length).tolist() == expect
     # diverse samples by vmap over keys
-    many, _ = ia.sample_rollouts(nets, params, w, b["keypose"], b["rel_R"], b["rel_t"], jax.random.key(2), CFG,
+    many, _ = ia.sample_rollouts(params, w, b["keypose"], b["rel_R"], b["rel_t"], jax.random.key(2), CFG,
                                  fa, 2, 3, threshold=-1.0)
     assert many.shape[:2] == (3, 3) and not np.allclose(many[0], many[1])
+
+
+def test_plain_dict_params_match_the_nnx_modules(pairs):
+    """init_params' plain dicts hold the nnx modules' initial values, and generator_step on them equals the nnx
+    Generator called directly."""
+    J = pairs[0].feats.shape[2]
+    key = jax.random.key(3)
+    params = ia.init_params(key, CFG, J)
+    gen = ia.Generator(J, CFG, rngs=nnx.Rngs(jax.random.split(key, 4)[0]))
+    _, state = nnx.split(gen)
+    ref_leaves = [np.asarray(v) for v in jax.tree.leaves(state)]
+    got = [np.asarray(v) for v in jax.tree.leaves(params["gen"])]
+    assert len(got) == len(ref_leaves) and all(np.array_equal(a, b) for a, b in zip(got, ref_leaves))
+    assert all(isinstance(v, dict) for v in params.values())
+    b = idata.sample_batch(idata.split_pairs(pairs, "train"), np.random.default_rng(6), 2, 50, (50, 70))
+    fa = np.asarray(pairs[0].forward_axis, np.float32)
+    out = ia.generator_step(params["gen"], b["x"][:, :, :20], b["keypose"], b["rel_R"], b["rel_t"],
+                            jax.random.key(4), CFG, fa)
+    c_in = ia._to_nodes(dct(jnp.concatenate([b["x"][:, :, :20], jnp.repeat(b["x"][:, :, 19:20], 10, 2)], 2),
+                            axis=2, num_coeffs=CFG.model.dct_coeffs))
+    _, res = gen.enc(c_in, b["keypose"].reshape(4, J, 9))
+    coarse = idct(ia._from_nodes(c_in + res.reshape(c_in.shape), 2), n=30, axis=2)[:, :, 20:]
+    np.testing.assert_allclose(out["coarse"], coarse, rtol=1e-6, atol=1e-7)
+    with pytest.raises(ValueError, match="gen parameters do not match"):
+        ia.generator_step(params["ref"], b["x"][:, :, :20], b["keypose"], b["rel_R"], b["rel_t"],
+                          jax.random.key(4), CFG, fa)
+
+
+def test_two_character_interpolation_on_real_frames(pairs):
+    from inbetween_jax.baselines import two_character_interpolation
+    s = ifeat.keyframe_sample(pairs[0].feats, 0, 40, 39, pairs[0].forward_axis)
+    last, key = s["x"][None, :, 0].astype(np.float32), s["keypose"][None].astype(np.float32)
+    out = np.asarray(two_character_interpolation(last, key, 9))                 # (1, 2, 9, J, 9)
+    t = np.arange(1, 10)[:, None, None] / 10.0
+    np.testing.assert_allclose(out[0, :, :, :, :3], last[0, :, None, :, :3] + t * (key - last)[0, :, None, :, :3],
+                               atol=1e-3)
+    fwd, up = out[..., 3:6], out[..., 6:9]
+    np.testing.assert_allclose(np.linalg.norm(fwd, axis=-1), 1.0, atol=1e-4)
+    np.testing.assert_allclose(np.sum(fwd * up, -1), 0.0, atol=1e-4)
+    same = np.asarray(two_character_interpolation(key, key, 5))
+    np.testing.assert_allclose(same, np.repeat(key[:, :, None], 5, 2), atol=1e-4)
+
+
+def test_frechet_distance_matches_the_diagonal_closed_form():
+    from inbetween_jax.metrics import frechet_distance
+    rng = np.random.default_rng(7)
+    a = rng.normal(0.0, 1.0, (4000, 3)) * [1.0, 2.0, 0.5]
+    b = rng.normal(0.3, 1.0, (4000, 3)) * [1.5, 1.0, 0.5] + [0.0, 1.0, 0.0]
+    # uncorrelated columns: the Gaussians' Frechet distance is sum (ma - mb)^2 + (sa - sb)^2 per dimension
+    ref = np.sum((a.mean(0) - b.mean(0)) ** 2) + np.sum((a.std(0, ddof=1) - b.std(0, ddof=1)) ** 2)
+    assert abs(frechet_distance(a, b) - ref) < 0.02
+    assert abs(frechet_distance(a, a)) < 1e-6

@@ -1,13 +1,8 @@
 """Two-character data for the interaction in-betweening model: paired BVH loading, constructed
-pairings, keyframe-space sampling and mirroring.
+pairings, temporal splits, training batches and evaluation windows.
 
-Representation: per character and frame, J joints x 9 channels = global position (3) + global
-rotation as forward / up vectors (6, :func:`quat_to_forward_up`).  Feature arrays are ``(..., T, J, 9)``.
-
-Rigid "spaces" are yaw rotations about +Y plus a translation, stored as ``(R, t)`` with ``R`` (..., 3, 3)
-and ``t`` (..., 3); :func:`apply_space` maps space coordinates to the parent frame (``R x + t``) and
-:func:`to_space` is its inverse.  A keyframe space has its origin at the keyframe root's floor
-projection and its +Z axis along the keyframe character's facing direction.
+Features and spaces are those of :mod:`inbetween_jax.models.interaction.features` (``(..., T, J, 9)``
+world features, rigid ``(R, t)`` keypose spaces).
 
 Real paired captures: ``load_pair(a, b)`` (two BVH files sharing frame timing) and
 ``find_pair_files(folder)`` (``<name>_A.bvh`` / ``<name>_B.bvh`` or a ``pairs.txt`` list of
@@ -26,10 +21,15 @@ import numpy as np
 
 from inbetween_jax.data import read_bvh
 from inbetween_jax.data.skeleton import Skeleton
-from inbetween_jax.geometry import forward_kinematics, quat_to_forward_up
+from inbetween_jax.geometry.heading import yaw_matrix
+from inbetween_jax.models.interaction.features import (apply_space, facing_yaw, keyframe_sample, mirror_feats,
+                                                       relative_space, root_space, scale_positions,
+                                                       skeleton_forward_axis, to_space, world_joint_features)
+
+__all__ = ["PairedMotion", "PairSet", "load_pair", "find_pair_files", "place_facing", "construct_pairs",
+           "load_pairs", "split_pairs", "load_pair_set", "sample_batch", "eval_windows"]
 
 LAFAN_NAME = re.compile(r"^(?P<action>.+)_(?P<subject>subject\d+)\.bvh$")
-LAFAN_FORWARD = (0.0, 1.0, 0.0)
 
 
 @dataclasses.dataclass
@@ -54,90 +54,6 @@ class PairedMotion:
         return dataclasses.replace(self, feats=self.feats[:, start:stop])
 
 
-# ----------------------------------------------------------------------------- rigid spaces (np / jnp)
-def _xp(x):
-    import jax.numpy as jnp
-    return np if isinstance(x, np.ndarray) else jnp
-
-
-def yaw_matrix(yaw):
-    """Rotation about +Y by ``yaw`` (radians), sending +Z to (sin yaw, 0, cos yaw): (...) -> (..., 3, 3)."""
-    xp = _xp(yaw)
-    c, s = xp.cos(yaw), xp.sin(yaw)
-    z, o = xp.zeros_like(yaw), xp.ones_like(yaw)
-    return xp.stack([xp.stack([c, z, s], -1), xp.stack([z, o, z], -1), xp.stack([-s, z, c], -1)], -2)
-
-
-def apply_space(feat, R, t):
-    """Space -> parent coordinates: positions ``R p + t``, forward/up ``R v``.
-
-    feat (..., J, 9); R (..., 3, 3) and t (..., 3) broadcast against feat's leading dims (without J).
-    """
-    xp = _xp(feat)
-    R = R[..., None, :, :]
-    v = feat.reshape(feat.shape[:-1] + (3, 3))                # (..., J, 3 vectors, 3)
-    out = xp.einsum("...ij,...kj->...ki", R, v)
-    out = out + xp.stack([t, xp.zeros_like(t), xp.zeros_like(t)], -2)[..., None, :, :]
-    return out.reshape(feat.shape)
-
-
-def to_space(feat, R, t):
-    """Inverse of :func:`apply_space`: parent -> space coordinates. Same shapes."""
-    xp = _xp(feat)
-    Rt = xp.swapaxes(R, -1, -2)
-    return apply_space(feat, Rt, -xp.einsum("...ij,...j->...i", Rt, t))
-
-
-def compose_spaces(Ra, ta, Rb, tb):
-    """``(Rb, tb)``-space -> ``(Ra, ta)``'s parent, when ``(Rb, tb)`` is expressed in space a: R (..,3,3), t (..,3)."""
-    xp = _xp(Ra)
-    return Ra @ Rb, xp.einsum("...ij,...j->...i", Ra, tb) + ta
-
-
-def relative_space(Ra, ta, Rb, tb):
-    """The map from space a to space b (both given in one parent frame): ``x_b = R x_a + t``."""
-    xp = _xp(Ra)
-    Rbt = xp.swapaxes(Rb, -1, -2)
-    return Rbt @ Ra, xp.einsum("...ij,...j->...i", Rbt, ta - tb)
-
-
-def facing_yaw(root_feat, forward_axis):
-    """Heading angle of a character from its root features: (..., 9) -> (...) radians (0 = facing +Z).
-
-    The root's local ``forward_axis`` (3,) is rotated by the root rotation rebuilt from forward/up.
-    """
-    xp = _xp(root_feat)
-    z = root_feat[..., 3:6]
-    z = z / (xp.linalg.norm(z, axis=-1, keepdims=True) + 1e-8)
-    y = root_feat[..., 6:9] - xp.sum(root_feat[..., 6:9] * z, -1, keepdims=True) * z
-    y = y / (xp.linalg.norm(y, axis=-1, keepdims=True) + 1e-8)
-    x = xp.cross(y, z)
-    fa = xp.asarray(forward_axis, root_feat.dtype)
-    f = x * fa[0] + y * fa[1] + z * fa[2]
-    return xp.arctan2(f[..., 0], f[..., 2])
-
-
-def root_space(root_feat, forward_axis):
-    """Floor-projected root space ``(R, t)`` of root features (..., 9): R (..., 3, 3), t (..., 3)."""
-    xp = _xp(root_feat)
-    R = yaw_matrix(facing_yaw(root_feat, forward_axis))
-    t = root_feat[..., :3] * xp.asarray([1.0, 0.0, 1.0], root_feat.dtype)
-    return R, t
-
-
-# ----------------------------------------------------------------------------- loading
-def motion_features(motion) -> np.ndarray:
-    """World features of a :class:`Motion`: (T, J, 9) float64 (FK positions + forward/up)."""
-    gq, gp = forward_kinematics(motion.local_quats, motion.local_pos, motion.skeleton.parents)
-    return np.concatenate([gp, quat_to_forward_up(gq)], axis=-1)
-
-
-def _forward_axis(skel: Skeleton) -> np.ndarray:
-    if skel.names and skel.names[0] == "Hips" and "LeftToe" in skel.names:  # LaFAN1 naming
-        return np.asarray(LAFAN_FORWARD)
-    return np.asarray(skel.forward_axis(), np.float64)
-
-
 def load_pair(path_a: str, path_b: str, name: Optional[str] = None) -> PairedMotion:
     """Two BVH files of one interaction sharing frame timing -> :class:`PairedMotion` (real pair).
 
@@ -149,9 +65,9 @@ def load_pair(path_a: str, path_b: str, name: Optional[str] = None) -> PairedMot
     if abs(ma.frame_time - mb.frame_time) > 1e-6:
         raise ValueError(f"{path_a} ({ma.fps:.3f} fps) and {path_b} ({mb.fps:.3f} fps) differ in frame rate")
     n = min(ma.num_frames, mb.num_frames)
-    feats = np.stack([motion_features(ma)[:n], motion_features(mb)[:n]]).astype(np.float32)
+    feats = np.stack([world_joint_features(ma)[:n], world_joint_features(mb)[:n]]).astype(np.float32)
     name = name or os.path.splitext(os.path.basename(path_a))[0]
-    return PairedMotion(feats, ma.skeleton, _forward_axis(ma.skeleton), float(ma.fps), name, False)
+    return PairedMotion(feats, ma.skeleton, skeleton_forward_axis(ma.skeleton), float(ma.fps), name, False)
 
 
 def find_pair_files(folder: str) -> list:
@@ -172,11 +88,20 @@ def find_pair_files(folder: str) -> list:
             for f in sorted(files) if f.endswith("_A.bvh") and f[:-6] + "_B.bvh" in files]
 
 
+def _placement_space(root_feat: np.ndarray, forward_axis):
+    """Root space of one root feature vector (9,) with the rotation computed in float32 (JAX): the
+    constructed pairs (and so every recorded training run) were made with this rotation; a float64 one
+    moves the pairs by up to one float32 ulp, which the GAN training amplifies."""
+    import jax.numpy as jnp
+    _, t = root_space(root_feat, forward_axis)
+    return yaw_matrix(jnp.asarray(facing_yaw(root_feat, forward_axis))), t
+
+
 def place_facing(feat_a: np.ndarray, feat_b: np.ndarray, forward_axis, distance: float) -> np.ndarray:
     """Move clip B rigidly so that at frame 0 its root is ``distance`` in front of A's root (floor plane)
     and faces A.  feat_a, feat_b: (T, J, 9) -> B's new features (T, J, 9)."""
-    Ra, ta = root_space(feat_a[0, 0], forward_axis)
-    Rb, tb = root_space(feat_b[0, 0], forward_axis)
+    Ra, ta = _placement_space(feat_a[0, 0], forward_axis)
+    Rb, tb = _placement_space(feat_b[0, 0], forward_axis)
     target_t = ta + Ra @ np.array([0.0, 0.0, distance])
     target_R = Ra @ yaw_matrix(np.asarray(np.pi))
     local = to_space(feat_b, Rb, tb)
@@ -207,8 +132,8 @@ def construct_pairs(paths: Sequence[str], distance: float = 150.0) -> list:
         if not ma.skeleton.same_topology(mb.skeleton) or abs(ma.frame_time - mb.frame_time) > 1e-6:
             continue
         n = min(ma.num_frames, mb.num_frames)
-        fa = _forward_axis(ma.skeleton)
-        a, b = motion_features(ma)[:n], motion_features(mb)[:n]
+        fa = skeleton_forward_axis(ma.skeleton)
+        a, b = world_joint_features(ma)[:n], world_joint_features(mb)[:n]
         b = place_facing(a, b, fa, distance)
         out.append(PairedMotion(np.stack([a, b]).astype(np.float32), ma.skeleton, fa, float(ma.fps), name, True))
     return out
@@ -257,28 +182,53 @@ def split_pairs(pairs: Sequence[PairedMotion], split: str, fractions=(0.85, 0.05
     return out
 
 
-# ----------------------------------------------------------------------------- samples
-def mirror_feats(feat: np.ndarray, mirror_map: Sequence[int]) -> np.ndarray:
-    """Mirror across the YZ plane (x -> -x) and swap left/right joints: (..., J, 9) -> (..., J, 9)."""
-    sign = np.tile(np.array([-1.0, 1.0, 1.0], feat.dtype), 3)
-    return (feat * sign)[..., list(mirror_map), :]
+@dataclasses.dataclass
+class PairSet:
+    """The pairs of one split of a source (:func:`load_pair_set`) and where they came from.
 
-
-def keyframe_sample(feats: np.ndarray, start: int, length: int, key: int, forward_axis) -> dict:
-    """One sample: ``length`` frames from ``start`` and a keyframe at ``start + key``, each character in its
-    own keyframe space.  feats (2, T, J, 9) world.
-
-    Returns dict: ``x`` (2, length, J, 9), ``keypose`` (2, J, 9), ``rel_R`` (2, 3, 3), ``rel_t`` (2, 3)
-    (map from character c's key space to the other's), ``world_R`` / ``world_t`` (2, 3, 3) / (2, 3)
-    (key space -> world).
+    pairs: the split's :class:`PairedMotion` (one skeleton); all_pairs: ``[{name, frames, constructed}]`` of
+    every pair of the source before splitting.
     """
-    R, t = root_space(feats[:, start + key, 0], forward_axis)            # (2, 3, 3), (2, 3)
-    x = to_space(feats[:, start:start + length], R[:, None], t[:, None])
-    kp = to_space(feats[:, start + key], R, t)
-    rel_R, rel_t = relative_space(R, t, R[::-1], t[::-1])
-    return dict(x=x, keypose=kp, rel_R=rel_R, rel_t=rel_t, world_R=R, world_t=t)
+    pairs: list
+    split: str
+    all_pairs: list
+
+    @property
+    def skeleton(self) -> Skeleton:
+        return self.pairs[0].skeleton
+
+    @property
+    def forward_axis(self) -> np.ndarray:
+        return self.pairs[0].forward_axis
+
+    @property
+    def num_joints(self) -> int:
+        return int(self.pairs[0].feats.shape[2])
+
+    @property
+    def constructed(self) -> bool:
+        return any(p["constructed"] for p in self.all_pairs)
+
+    @property
+    def num_frames(self) -> int:
+        return int(sum(p.num_frames for p in self.pairs))
 
 
+def load_pair_set(source: Optional[str], split: str, distance: float = 150.0,
+                  fractions=(0.85, 0.05, 0.10)) -> PairSet:
+    """:func:`load_pairs` of ``source`` cut to ``split`` (:func:`split_pairs`).
+
+    Raises:
+        ValueError: the split holds no pair (one line naming the source).
+    """
+    pairs = load_pairs(source, distance)
+    part = split_pairs(pairs, split, fractions)
+    if not part:
+        raise ValueError(f"{source}: no pair has frames in the {split!r} split")
+    return PairSet(part, split, [dict(name=p.name, frames=p.num_frames, constructed=p.constructed) for p in pairs])
+
+
+# ----------------------------------------------------------------------------- samples
 def sample_batch(pairs: Sequence[PairedMotion], rng: np.random.Generator, batch: int, length: int = 50,
                  key_range=(50, 70), mirror: bool = True, pos_scale: float = 0.01) -> dict:
     """A random training batch (numpy float32): keys of :func:`keyframe_sample` with a leading batch axis;
@@ -302,17 +252,6 @@ def sample_batch(pairs: Sequence[PairedMotion], rng: np.random.Generator, batch:
     b["world_R"], b["world_t"] = R, t
     b = {k: v.astype(np.float32) for k, v in b.items()}
     return scale_positions(b, pos_scale)
-
-
-def scale_positions(b: dict, s: float) -> dict:
-    """Multiply the position channels (and translations) of a sample dict by ``s``."""
-    b = dict(b)
-    sc = np.array([s] * 3 + [1.0] * 6, np.float32)
-    for k in ("x", "keypose"):
-        b[k] = b[k] * sc
-    for k in ("rel_t", "world_t"):
-        b[k] = b[k] * np.float32(s)
-    return b
 
 
 def eval_windows(pairs: Sequence[PairedMotion], n_input: int, transition: int, stride: int,

@@ -1,4 +1,5 @@
-"""Network blocks of the interaction in-betweening model (flax NNX).
+"""Network blocks of the interaction in-betweening model (flax NNX, used through
+:mod:`inbetween_jax.models.interaction.model`, whose parameters are plain nested dicts).
 
 * :class:`GraphConv` -- ``A x W`` over joints with a learnable adjacency ``A`` (J, J), as in DCT-GCN motion
   prediction (Mao et al. 2019).
@@ -89,11 +90,6 @@ def film(h, gamma, beta):
 def reparameterize(mu, logvar, key):
     """z = mu + eps * exp(logvar / 2), eps ~ N(0, I): shapes (..., Z)."""
     return mu + jax.random.normal(key, mu.shape, mu.dtype) * jnp.exp(0.5 * logvar)
-
-
-def kl_divergence(mu, logvar):
-    """Mean of ``-0.5 (1 + logvar - mu^2 - exp(logvar))`` (Eq. 6) over all elements: scalar."""
-    return jnp.mean(-0.5 * (1.0 + logvar - mu ** 2 - jnp.exp(logvar)))
 
 
 class Refiner(nnx.Module):

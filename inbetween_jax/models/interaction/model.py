@@ -1,4 +1,4 @@
-"""Cross-space interaction in-betweening (Zhang et al. 2025) in JAX / flax NNX.
+"""Cross-space interaction in-betweening (Zhang et al. 2025): parameters and pure apply functions.
 
 One autoregressive step for both characters (Sec. 4.1)::
 
@@ -9,23 +9,31 @@ One autoregressive step for both characters (Sec. 4.1)::
     relative features -> DCT -> encoder -> mu, logvar -> z -> FiLM gamma, beta   (Eq. 3)
     h_mod = h * (1 + gamma) + beta; Dec (same architecture) -> residual DCT -> IDCT (Eq. 4)
 
-Parameters are plain ``nnx.State`` pytrees (``nnx.split``); every function here is pure and jit-able.
-:func:`rollout` runs the inference autoregression with ``lax.scan`` and stops once both characters are within
-``stop_threshold`` of their keyposes; :func:`sample_rollouts` draws diverse samples by ``vmap`` over keys.
+Parameters are a plain nested dict ``{"gen", "ref", "pae", "disc"}`` of arrays (:func:`init_params`).  The
+layers are flax ``nnx`` modules (:mod:`.layers`) used as a layer library: every apply function rebuilds the
+module from its static graph definition (:func:`graphdefs`, built once per config and joint count without
+allocating) and the dict, so every function here is pure and jit-able.  :func:`rollout` runs the inference
+autoregression with ``lax.scan`` and stops once both characters are within ``stop_threshold`` of their
+keyposes; :func:`sample_rollouts` draws diverse samples by ``vmap`` over keys.
 """
 from __future__ import annotations
 
-import dataclasses
-from typing import Any
+import functools
 
 import jax
 import jax.numpy as jnp
 from flax import nnx
 
 from inbetween_jax.geometry import dct, idct
-from inbetween_jax.models.interaction_data import apply_space, root_space, to_space
-from inbetween_jax.models.interaction_nets import (ConvGCN, Discriminator, FiLM, PeriodicAE, Refiner, film,
-                                                   reparameterize)
+from inbetween_jax.models.interaction.features import apply_space, root_space, to_space
+from inbetween_jax.models.interaction.layers import (ConvGCN, Discriminator, FiLM, PeriodicAE, Refiner, film,
+                                                     reparameterize)
+
+__all__ = ["GROUPS", "Generator", "pjd_channels", "graphdefs", "init_params", "cross_space", "cross_space_inverse",
+           "generator_step", "refine", "pae_encode", "pae_reconstruct", "disc_logits", "keypose_distance",
+           "ar_predict", "rollout", "sample_rollouts"]
+
+GROUPS = ("gen", "ref", "pae", "disc")
 
 
 class Generator(nnx.Module):
@@ -41,33 +49,52 @@ class Generator(nnx.Module):
         self.dec = ConvGCN(num_joints, K, 9, H, H, K * 9, m.conv_channels, m.gcn_layers, rngs=rngs)
 
 
-@dataclasses.dataclass(frozen=True)
-class Nets:
-    """Graph definitions (static) of the four parameter groups."""
-    gen: Any
-    ref: Any
-    pae: Any
-    disc: Any
-
-
 def pjd_channels(num_joints: int, cfg) -> int:
     j = len(cfg.model.pjd_joints) or num_joints
     return j * j
 
 
-def init_params(key, num_joints: int, cfg):
-    """-> (Nets graphdefs, params dict {gen, ref, pae, disc} of nnx.State)."""
+def _modules(key, num_joints: int, cfg) -> dict:
     ks = jax.random.split(key, 4)
     m, d = cfg.model, cfg.data
-    mods = dict(
+    return dict(
         gen=Generator(num_joints, cfg, rngs=nnx.Rngs(ks[0])),
         ref=Refiner(num_joints, d.n_pred, m.refiner_hidden, m.refiner_latent, m.conv_channels, m.gcn_layers,
                     rngs=nnx.Rngs(ks[1])),
         pae=PeriodicAE(pjd_channels(num_joints, cfg), m.pjd_frames, m.pae_channels, m.pae_hidden,
                        rngs=nnx.Rngs(ks[2])),
         disc=Discriminator(m.pjd_frames, m.pae_channels, m.disc_hidden, rngs=nnx.Rngs(ks[3])))
-    split = {k: nnx.split(v) for k, v in mods.items()}
-    return Nets(**{k: v[0] for k, v in split.items()}), {k: v[1] for k, v in split.items()}
+
+
+def init_params(key, cfg, num_joints: int) -> dict:
+    """-> ``{"gen", "ref", "pae", "disc"}``: each a nested dict of arrays (``nnx.State.to_pure_dict``)."""
+    return {k: nnx.split(v)[1].to_pure_dict() for k, v in _modules(key, num_joints, cfg).items()}
+
+
+@functools.lru_cache(maxsize=32)
+def _graphs(model_cfg, data_cfg, num_joints: int) -> dict:
+    from types import SimpleNamespace
+    cfg = SimpleNamespace(model=model_cfg, data=data_cfg)
+    mods = nnx.eval_shape(lambda: _modules(jax.random.key(0), num_joints, cfg))
+    out = {}
+    for k, v in mods.items():
+        gdef, state = nnx.split(v)
+        out[k] = (gdef, jax.tree.structure(state), jax.tree.structure(state.to_pure_dict()))
+    return out
+
+
+def graphdefs(cfg, num_joints: int) -> dict:
+    """``{group: nnx graph definition}`` of the four parameter groups (static; nothing is allocated)."""
+    return {k: v[0] for k, v in _graphs(cfg.model, cfg.data, num_joints).items()}
+
+
+def _module(group: str, params: dict, cfg, num_joints: int):
+    """The nnx module of ``group`` holding the arrays of the plain dict ``params``."""
+    gdef, state_def, dict_def = _graphs(cfg.model, cfg.data, num_joints)[group]
+    leaves, got = jax.tree.flatten(params)
+    if got != dict_def:
+        raise ValueError(f"{group} parameters do not match the config (expected {dict_def}, got {got})")
+    return nnx.merge(gdef, jax.tree.unflatten(state_def, leaves))
 
 
 def _to_nodes(c):
@@ -102,16 +129,16 @@ def cross_space_inverse(rel, other, rel_R, rel_t, forward_axis):
     return apply_space(in_other, Rt[:, :, None], -jnp.einsum("...ij,...j->...i", Rt, rel_t)[:, :, None])
 
 
-def generator_step(gen_def, gen_params, window, keypose, rel_R, rel_t, key, cfg, forward_axis):
+def generator_step(gen_params, window, keypose, rel_R, rel_t, key, cfg, forward_axis):
     """One prediction step for both characters.
 
-    window (B, 2, T, J, 9), keypose (B, 2, J, 9), rel_R (B, 2, 3, 3), rel_t (B, 2, 3), key: PRNG key.
-    Returns dict: pred (B, 2, l, J, 9), coarse (B, 2, l, J, 9), mu / logvar (B, 2, J, Z) (zeros when
-    interaction modelling is off).
+    gen_params: ``params["gen"]``; window (B, 2, T, J, 9), keypose (B, 2, J, 9), rel_R (B, 2, 3, 3),
+    rel_t (B, 2, 3), key: PRNG key.  Returns dict: pred (B, 2, l, J, 9), coarse (B, 2, l, J, 9),
+    mu / logvar (B, 2, J, Z) (zeros (B, 2, J, 1) when interaction modelling is off).
     """
-    gen = nnx.merge(gen_def, gen_params)
     m, d = cfg.model, cfg.data
     B, _, T, J, _ = window.shape
+    gen = _module("gen", gen_params, cfg, J)
     L = T + d.n_pred
     pad = jnp.concatenate([window, jnp.repeat(window[:, :, -1:], d.n_pred, axis=2)], axis=2)
     c_in = _to_nodes(dct(pad, axis=2, num_coeffs=m.dct_coeffs))           # (2B, J, K, 9)
@@ -135,11 +162,28 @@ def generator_step(gen_def, gen_params, window, keypose, rel_R, rel_t, key, cfg,
     return dict(pred=final[:, :, T:], coarse=coarse[:, :, T:], mu=mu, logvar=logvar)
 
 
-def refine(ref_def, ref_params, pred):
-    """Motion refiner on a predicted segment: (B, 2, l, J, 9) -> (B, 2, l, J, 9)."""
-    ref = nnx.merge(ref_def, ref_params)
+def refine(ref_params, pred, cfg):
+    """Motion refiner on a predicted segment: ``params["ref"]``, (B, 2, l, J, 9) -> (B, 2, l, J, 9)."""
+    ref = _module("ref", ref_params, cfg, pred.shape[3])
     B = pred.shape[0]
     return ref(pred.reshape((2 * B,) + pred.shape[2:])).reshape(pred.shape)
+
+
+def pae_encode(pae_params, pjd, cfg, num_joints: int):
+    """Periodic latent of PJD dynamics (B, N, C): -> (h (B, N, Cp), {f, a, b, phi} each (B, Cp))."""
+    return _module("pae", pae_params, cfg, num_joints).encode(pjd)
+
+
+def pae_reconstruct(pae_params, pjd, cfg, num_joints: int):
+    """Periodic autoencoder: PJD dynamics (B, N, C) -> (reconstruction (B, N, C), h, params)."""
+    return _module("pae", pae_params, cfg, num_joints)(pjd)
+
+
+def disc_logits(pae_params, disc_params, pjd, cfg, num_joints: int):
+    """Interaction critic: PJD dynamics (B, N, C) -> PAE latent -> discriminator logits (B,)."""
+    h, prm = pae_encode(pae_params, pjd, cfg, num_joints)
+    logit, _ = _module("disc", disc_params, cfg, num_joints)(h, prm)
+    return logit
 
 
 def keypose_distance(frame, keypose):
@@ -147,8 +191,35 @@ def keypose_distance(frame, keypose):
     return jnp.mean(jnp.linalg.norm(frame[..., :3] - keypose[..., :3], axis=-1), axis=-1)
 
 
-def rollout(nets: Nets, params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, num_steps: int,
-            use_refiner=None, threshold=None):
+def ar_predict(gen_params, batch, key, cfg, forward_axis, p_pred):
+    """Training autoregression: P = ``data.ar_steps`` steps with scheduled sampling (per-sample
+    Bernoulli(p_pred) choice of the prediction over the ground truth as the next input).
+
+    batch: ``x`` (B, 2, T + P*l, J, 9), ``keypose``, ``rel_R``, ``rel_t``.  Returns preds / coarse
+    (B, 2, P*l, J, 9), mu, logvar (P, B, 2, J, Z).
+    """
+    d, P = cfg.data, cfg.data.ar_steps
+    T, l = d.n_input, d.n_pred
+    x = batch["x"]
+    B = x.shape[0]
+    gt = jnp.moveaxis(x[:, :, T:T + P * l].reshape(x.shape[:2] + (P, l) + x.shape[3:]), 2, 0)
+
+    def step(win, inp):
+        g, k = inp
+        k1, k2 = jax.random.split(k)
+        out = generator_step(gen_params, win, batch["keypose"], batch["rel_R"], batch["rel_t"], k1, cfg,
+                             forward_axis)
+        use = jax.random.bernoulli(k2, p_pred, (B, 1, 1, 1, 1))
+        nxt = jnp.where(use, out["pred"], g)
+        return jnp.concatenate([win[:, :, l:], nxt], axis=2), out
+
+    _, outs = jax.lax.scan(step, x[:, :, :T], (gt, jax.random.split(key, P)))
+    cat = lambda a: jnp.moveaxis(a, 0, 2).reshape((B, 2, P * l) + a.shape[4:])  # noqa: E731
+    return cat(outs["pred"]), cat(outs["coarse"]), outs["mu"], outs["logvar"]
+
+
+def rollout(params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, num_steps: int, use_refiner=None,
+            threshold=None):
     """Inference autoregression with ``lax.scan`` over ``num_steps`` steps of l frames.
 
     Once both characters' mean joint distance to their keyposes is below ``threshold`` (model units) after
@@ -163,10 +234,10 @@ def rollout(nets: Nets, params, window, keypose, rel_R, rel_t, key, cfg, forward
 
     def step(carry, k):
         win, done, length = carry
-        out = generator_step(nets.gen, params["gen"], win, keypose, rel_R, rel_t, k, cfg, forward_axis)
+        out = generator_step(params["gen"], win, keypose, rel_R, rel_t, k, cfg, forward_axis)
         pred = out["pred"]
         if use_refiner:
-            pred = refine(nets.ref, params["ref"], pred)
+            pred = refine(params["ref"], pred, cfg)
         hold = jnp.repeat(win[:, :, -1:], l, axis=2)
         pred = jnp.where(done[:, None, None, None, None], hold, pred)
         length = length + jnp.where(done, 0, l)
@@ -180,9 +251,9 @@ def rollout(nets: Nets, params, window, keypose, rel_R, rel_t, key, cfg, forward
     return frames.reshape(frames.shape[:2] + (num_steps * l,) + frames.shape[4:]), length
 
 
-def sample_rollouts(nets: Nets, params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, num_steps: int,
+def sample_rollouts(params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, num_steps: int,
                     num_samples: int, **kw):
     """``num_samples`` diverse rollouts by ``vmap`` over keys: (S, B, 2, num_steps * l, J, 9), (S, B)."""
     keys = jax.random.split(key, num_samples)
-    return jax.vmap(lambda k: rollout(nets, params, window, keypose, rel_R, rel_t, k, cfg, forward_axis,
-                                      num_steps, **kw))(keys)
+    return jax.vmap(lambda k: rollout(params, window, keypose, rel_R, rel_t, k, cfg, forward_axis, num_steps,
+                                      **kw))(keys)

@@ -1,0 +1,180 @@
+"""Two-character in-betweening benchmark rows in the layout of the interaction paper's Table 1.
+
+``run(source, results_dir, run_dir, quick)`` evaluates, on the test split of the paired data (protocol:
+:mod:`inbetween_jax.evaluation.interaction`): the cross-space model (``run_dir``), the independent-characters
+baseline (the same network trained with ``model.interaction=false model.gan=false``, found next to
+``run_dir``: ``<run_dir>_indep``, a ``_full`` -> ``_indep`` sibling, or ``run_dir/indep``) and per-character
+interpolation, plus ground truth for the interaction score.  Ablations: the same checkpoint with the refiner
+switched off, and ``<run_dir>_nogan`` (trained with ``model.gan=false``) when present.  Without a trained
+run the benchmark is skipped (the markdown says why and how to train one).
+"""
+from __future__ import annotations
+
+import json
+import os
+import time
+
+import numpy as np
+
+TITLE = "### Interaction in-betweening (paper Table 1 layout)"
+TRAIN_HINT = "inbetween train interaction --preset cpu --run-dir runs/interaction"
+
+
+def _has_run(path) -> bool:
+    from inbetween_jax.train.run import RunError, load_run
+    try:
+        return load_run(path).model == "interaction"
+    except RunError:
+        return False
+
+
+def _find_runs(run_dir):
+    """-> (full run folder, independent-characters run folder or None)."""
+    run_dir = os.path.normpath(run_dir)
+    if os.path.basename(run_dir) == "checkpoints":
+        run_dir = os.path.dirname(run_dir)
+    if _has_run(run_dir):
+        full = run_dir
+        cands = [run_dir + "_indep", run_dir.replace("_full", "_indep"), os.path.join(run_dir, "indep")]
+    else:
+        full = os.path.join(run_dir, "full")
+        cands = [os.path.join(run_dir, "indep")]
+    indep = next((c for c in cands if c != full and _has_run(c)), None)
+    return full, indep
+
+
+def _restore(path):
+    from inbetween_jax.models.interaction.infer import load
+    from inbetween_jax.train.run import load_run
+    return load(load_run(path))
+
+
+def _model_method(trained, use_refiner=None):
+    """Windows -> (S, B, 2, steps * l, J, 9) rollouts of ``trained`` (no early stop)."""
+    import jax
+    from inbetween_jax.evaluation.interaction import N_INPUT
+    from inbetween_jax.models.interaction.model import sample_rollouts
+    cfg, fa = trained.cfg, trained.forward_axis.astype(np.float32)
+    cache = {}
+
+    def method(b, steps, samples, key):
+        if (steps, samples) not in cache:
+            cache[(steps, samples)] = jax.jit(lambda p, w, kp, R, t, k: sample_rollouts(
+                p, w, kp, R, t, k, cfg, fa, steps, samples, threshold=-1.0, use_refiner=use_refiner)[0])
+        return np.asarray(cache[(steps, samples)](trained.params, b["x"][:, :, :N_INPUT], b["keypose"], b["rel_R"],
+                                                  b["rel_t"], key))
+    return method
+
+
+def stop_stats(trained, b) -> dict:
+    """Inference as in the paper: roll out until both characters are within ``model.stop_threshold`` of their
+    keyposes (cap ``model.max_frames``).  b: eval windows.  -> reached fraction, mean frames, true gap."""
+    import jax
+    from inbetween_jax.evaluation.interaction import N_INPUT
+    from inbetween_jax.models.interaction.model import keypose_distance, rollout
+    cfg, fa = trained.cfg, trained.forward_axis.astype(np.float32)
+    steps = cfg.model.max_frames // cfg.data.n_pred
+    l = cfg.data.n_pred
+    frames, length = jax.jit(lambda p: rollout(p, b["x"][:, :, :N_INPUT], b["keypose"], b["rel_R"], b["rel_t"],
+                                               jax.random.key(0), cfg, fa, steps))(trained.params)
+    length = np.asarray(length)
+    d = np.stack([np.asarray(keypose_distance(frames[:, :, l * k + l - 1], b["keypose"])).max(1)
+                  for k in range(steps)], 1)                                  # (B, steps), metres
+    return dict(reached=float(np.mean(length < steps * l)), mean_frames=float(length.mean()),
+                true_gap=int(b["x"].shape[2] - N_INPUT - 1), threshold_m=cfg.model.stop_threshold,
+                max_frames=cfg.model.max_frames, median_closest_m=float(np.median(d.min(1))))
+
+
+def _skipped(why: str) -> dict:
+    return {"markdown": f"{TITLE}\n\nSkipped: {why}. Train one with `{TRAIN_HINT}`.", "rows": [], "skipped": why}
+
+
+def run(source, results_dir: str, run_dir, quick: bool = False) -> dict:
+    """Evaluate and write ``results_dir/interaction_table.{md,json}``; returns ``{"markdown", "rows", ...}``."""
+    if run_dir is None:
+        return _skipped("no interaction run folder given")
+    full_dir, indep_dir = _find_runs(run_dir)
+    if not _has_run(full_dir):
+        return _skipped(f"{run_dir} holds no trained interaction run")
+    import jax
+
+    from inbetween_jax.evaluation import interaction as proto
+    from inbetween_jax.evaluation.tables import flat_rows
+    from inbetween_jax.models.interaction.data import load_pairs, split_pairs
+    t0 = time.time()
+    trained = _restore(full_dir)
+    train_source = (_load_run_data(full_dir) or {}).get("source")
+    cfg = trained.cfg
+    d = cfg.data
+    data_source = train_source if source is None else source
+    pairs = load_pairs(data_source, d.pair_distance)
+    if pairs[0].feats.shape[2] != trained.num_joints:      # the run was trained on another skeleton
+        data_source = train_source
+        pairs = load_pairs(data_source, d.pair_distance)
+    train, test = split_pairs(pairs, "train", d.split), split_pairs(pairs, "test", d.split)
+    constructed = any(p.constructed for p in pairs)
+    windows = proto.table1_windows(test, d.pos_scale, 24 if quick else 128)
+    stats = proto.l2p_stats(train, d.pos_scale, (d.key_min, d.key_max))
+    cls = proto.train_classifier(train, trained.num_joints, cfg.model.pjd_joints, steps=40 if quick else 400,
+                                 pos_scale=d.pos_scale)
+    feet = tuple(pairs[0].skeleton.foot_joints())
+    key = jax.random.key(0)
+    methods = {f"Ours (cross-space, step {trained.step})": ("interaction", _model_method(trained))}
+    if cfg.model.refiner:
+        methods["w/o Motion Refiner (same checkpoint, refiner off)"] = ("interaction", _model_method(trained, False))
+    nogan = full_dir + "_nogan"
+    if _has_run(nogan):
+        g = _restore(nogan)
+        methods[f"w/o Inter. GAN (step {g.step})"] = ("interaction", _model_method(g))
+    indep = _restore(indep_dir) if indep_dir else None
+    if indep is not None:
+        methods[f"Independent characters (same net w/o interaction, step {indep.step})"] = \
+            ("interaction", _model_method(indep))
+    methods["Independent characters (interpolation)"] = ("interpolation", proto.interpolation_method)
+    methods["Ground truth"] = ("ground_truth", proto.ground_truth_method)
+    results = {name: proto.evaluate(m, windows, stats, cls[:2], feet, d.pos_scale, key)
+               for name, (_, m) in methods.items()}
+    paper_name = "Paper, Boxing 'Ours' (different data; reference only)"
+    results[paper_name] = dict(proto.PAPER_BOXING)
+    stops = {}
+    if windows.get(50):
+        stops["Ours"] = stop_stats(trained, windows[50])
+        if indep is not None:
+            stops["Independent"] = stop_stats(indep, windows[50])
+    n_win = {L: (len(w["names"]) if w else 0) for L, w in windows.items()}
+    kind = ("CONSTRUCTED pairs (single-person clips paired by us, not real two-person captures)" if constructed
+            else "real pairs")
+    note = (f"Data: {data_source or 'default source'}; {len(pairs)} {kind}; test windows per length {n_win}; "
+            f"classifier accuracy {cls[2]:.2f}.")
+    table = proto.format_table(results, note)
+    if stops:
+        table += "\n\nRollout until both characters are within the keypose threshold (50-frame test gaps): " + \
+            "; ".join(f"{k}: {v['reached']:.0%} reached within {v['max_frames']} frames, mean {v['mean_frames']:.0f} "
+                      f"frames (true gap {v['true_gap']}, threshold {v['threshold_m']} m, median closest approach "
+                      f"{v['median_closest_m']:.2f} m)" for k, v in stops.items())
+    data_name = "embedded" if data_source == "embedded" else os.path.basename(os.path.normpath(str(data_source)))
+    groups = {name: kind_ for name, (kind_, _) in methods.items()}
+    groups[paper_name] = "paper"
+    rows = []
+    for name, res in results.items():
+        model = groups[name]
+        rows += flat_rows(proto.long_rows(res), table="interaction_table1", data=data_name, model=model,
+                          variant=name if model in ("interaction", "paper") else "", keys=("frames",))
+    for name, s in stops.items():
+        rows += flat_rows([{"method": name, "reached": s["reached"], "mean_frames": s["mean_frames"],
+                            "median_closest_m": s["median_closest_m"]}], table="interaction_stop", data=data_name,
+                          model="interaction", variant=name, keys=())
+    os.makedirs(results_dir, exist_ok=True)
+    with open(os.path.join(results_dir, "interaction_table.md"), "w") as f:
+        f.write(table + "\n")
+    out = dict(markdown=f"{TITLE}\n\n" + table, rows=rows, results=results, note=note, stops=stops,
+               constructed=constructed, windows=n_win, seconds=time.time() - t0, full_run=full_dir,
+               indep_run=indep_dir)
+    with open(os.path.join(results_dir, "interaction_table.json"), "w") as f:
+        json.dump(out, f, indent=1)
+    return out
+
+
+def _load_run_data(path) -> dict:
+    from inbetween_jax.train.run import load_run
+    return load_run(path).data

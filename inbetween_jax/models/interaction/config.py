@@ -1,0 +1,113 @@
+"""Interaction in-betweening configuration (Zhang et al. 2025, "Motion In-Betweening for Densely Interacting
+Characters").
+
+``Config(model, data, loss, train)`` of frozen dataclasses; override from the command line with dotted keys,
+e.g. ``model.hidden=64 train.batch_size=8 model.interaction=false``.  Presets (:data:`PRESETS`):
+
+* ``cpu`` (default): sizes and schedule chosen for a ~30 min CPU run (the paper lists no layer sizes).
+* ``paper``: the values the paper states (Sec. 5.1 / 4.2: T = 20, l = 10, P = 3 (30 predicted frames),
+  keyframe 50-70 frames after the window start, mirroring, C_phi = 15, N = 30, 90/5/5 split, Adam
+  lr 1e-4, b1 0.9, b2 0.999); everything it does not state keeps the ``cpu`` value (see :func:`get_config`).
+* ``tiny``: the test variant.
+
+Ablation switches (Table 1): ``model.interaction`` (False: "w/o interaction modeling", each character
+in-betweened independently in its own keypose space), ``model.gan`` ("w/o Inter. GAN"),
+``model.refiner`` ("w/o Motion Refiner").  The autoregressive training length (``data.ar_steps``) and the
+scheduled-sampling curriculum (``data.ss_ramp_steps``, ``data.ss_max``) are ``data`` fields: they decide
+which frames a training sample holds and how often predictions are fed back as inputs.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+from inbetween_jax.train.config import TrainConfig
+
+__all__ = ["ModelConfig", "DataConfig", "LossConfig", "Config", "PRESETS", "DEFAULT_PRESET", "get_config"]
+
+PRESETS = ("paper", "cpu", "tiny")
+DEFAULT_PRESET = "cpu"
+
+
+@dataclasses.dataclass(frozen=True)
+class DataConfig:
+    pair_distance: float = 150.0   # constructed pairs: second performer this far in front (file units, cm)
+    pos_scale: float = 0.01        # positions enter the model in metres
+    n_input: int = 20              # T: observed frames
+    n_pred: int = 10               # l: frames predicted per autoregressive step
+    ar_steps: int = 3              # P: autoregressive steps per training sample (P * l predicted frames)
+    key_min: int = 50              # keyframe sampled 50..70 frames after the window start (Sec. 5.1)
+    key_max: int = 70
+    mirror: bool = True            # mirroring augmentation (p = 0.5)
+    split: tuple = (0.85, 0.05, 0.10)   # temporal train / val / test fractions of every pair
+    ss_ramp_steps: int = 1500      # scheduled sampling: P(feed back prediction) ramps 0 -> ss_max
+    ss_max: float = 0.5
+
+
+@dataclasses.dataclass(frozen=True)
+class ModelConfig:
+    dct_coeffs: int = 15           # DCT coefficients kept of the (n_input + n_pred)-frame padded window
+    conv_channels: int = 8
+    hidden: int = 64
+    gcn_layers: int = 2
+    latent: int = 8                # VAE latent per joint
+    refiner_hidden: int = 64
+    refiner_latent: int = 16
+    pae_channels: int = 15         # C_phi
+    pae_hidden: int = 64
+    pjd_frames: int = 30           # N (Eq. 9) = data.ar_steps * data.n_pred
+    pjd_joints: tuple = ()         # subset of joints for the PJD (empty: all)
+    pjd_scale: float = 2.0         # PJD values (m^2 / frame) are multiplied by this
+    disc_hidden: int = 64
+    interaction: bool = True       # cross-space interaction modelling (transform + VAE + FiLM)
+    gan: bool = True               # PAE + interaction discriminator
+    refiner: bool = True           # motion refiner at inference
+    stop_threshold: float = 0.15   # rollout stops when both characters' mean joint distance to keypose < this (m)
+    max_frames: int = 200          # rollout cap
+
+
+@dataclasses.dataclass(frozen=True)
+class LossConfig:
+    w_mse: float = 1.0
+    w_coarse: float = 0.5          # auxiliary MSE on the coarse (individual) prediction
+    w_kl: float = 1e-3
+    w_adv: float = 0.01
+    w_pae: float = 1.0
+    w_refine: float = 1.0
+
+
+# the former real-CPU-run settings of the train group (Adam 1e-3 behind a global-norm clip of 1)
+_CPU_TRAIN = TrainConfig(num_steps=3000, batch_size=16, lr=1e-3, grad_clip=1.0, log_every=50, ckpt_every=250,
+                         seed=0)
+
+
+@dataclasses.dataclass(frozen=True)
+class Config:
+    model: ModelConfig = ModelConfig()
+    data: DataConfig = DataConfig()
+    loss: LossConfig = LossConfig()
+    train: TrainConfig = _CPU_TRAIN
+
+
+def get_config(preset: str = DEFAULT_PRESET) -> Config:
+    """The ``paper``, ``cpu`` or ``tiny`` preset (ValueError naming the choices otherwise).
+
+    ``paper`` differs from ``cpu`` in: ``train.lr`` 1e-4 (paper: Adam, lr 1e-4, b1 0.9, b2 0.999; ``cpu``
+    raises the lr for short runs) and ``data.split`` (0.90, 0.05, 0.05) (paper: 90 / 5 / 5; ``cpu`` keeps 10 %
+    for testing so that 221-frame long-horizon test windows fit).  The values the paper states and ``cpu``
+    already uses: n_input 20, n_pred 10, ar_steps 3, key_min / key_max 50 / 70, mirror, pae_channels 15,
+    pjd_frames 30.  Not stated, kept from ``cpu``: layer sizes, loss weights (lambda_mse / lambda_kl are
+    named but not given), scheduled sampling, stop threshold, batch size, gradient clip and the number of
+    steps (the paper trains 100 epochs, 40-50 h on a GPU).
+    """
+    if preset == "cpu":
+        return Config()
+    if preset == "paper":
+        return Config(data=DataConfig(split=(0.90, 0.05, 0.05)), train=dataclasses.replace(_CPU_TRAIN, lr=1e-4))
+    if preset == "tiny":
+        return Config(model=ModelConfig(dct_coeffs=30, conv_channels=4, hidden=32, gcn_layers=1, latent=4,
+                                        refiner_hidden=16, refiner_latent=4, pae_channels=3, pae_hidden=8,
+                                        pjd_joints=(0, 3, 7, 13), disc_hidden=16, max_frames=60),
+                      data=DataConfig(ss_ramp_steps=10),
+                      train=dataclasses.replace(_CPU_TRAIN, batch_size=4, num_steps=20, log_every=5,
+                                                ckpt_every=10))
+    raise ValueError(f"unknown interaction preset {preset!r}; choose {', '.join(PRESETS)}")

@@ -1,0 +1,164 @@
+"""Inference with a trained interaction model: restore a run folder, roll out in-betweens for two characters
+and infill users' BVH files (``inbetween infill --model interaction``).
+
+    trained = load(load_run("runs/interaction"))
+    feats = infill_features(trained, context, keyframes, frames=40, num_samples=3)   # (3, 2, 40, J, 9) world
+
+Users' inputs go to each character's keyframe space exactly as
+:func:`~inbetween_jax.models.interaction.features.keyframe_sample` does for training samples.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import numpy as np
+
+from inbetween_jax.data.skeleton import Skeleton
+from inbetween_jax.data.user_input import check_skeleton, finite_or_fail, read_keyframe, same_skeleton
+from inbetween_jax.errors import UserError
+from inbetween_jax.geometry import quat_fix_sign_np, quat_from_forward_up, quat_inv, quat_mul, quat_normalize
+from inbetween_jax.geometry.fit import fit_rotations
+from inbetween_jax.models.interaction.config import Config
+from inbetween_jax.models.interaction.features import (apply_space, key_space_inputs, root_space,
+                                                       world_joint_features)
+from inbetween_jax.models.interaction.model import sample_rollouts
+from inbetween_jax.models.spec import InfillResult
+from inbetween_jax.train.config import config_from_dict
+from inbetween_jax.train.run import Run, RunError, restore_state
+
+__all__ = ["Trained", "INFILL_OPTIONS", "load", "infill_features", "features_to_motion", "infill"]
+
+INFILL_OPTIONS = {
+    "a": "character A's context: FILE.bvh[:START_FRAME] (default last frame); the model reads the frames up to it",
+    "b": "character B's context: FILE.bvh[:START_FRAME] (default last frame)",
+    "key_a": "A's keyframe FILE.bvh[:FRAME] (default last frame)",
+    "key_b": "B's keyframe FILE.bvh[:FRAME] (default last frame)",
+    "frames": "generated frames between the start frames and the keyframes",
+}
+
+
+@dataclasses.dataclass
+class Trained:
+    """A restored interaction model: config, parameters ``{gen, ref, pae, disc}`` and what it was trained on."""
+    cfg: Config
+    params: dict
+    num_joints: int
+    forward_axis: np.ndarray          # (3,) the root's local facing axis
+    skeleton: Skeleton | None
+    step: int
+    run_dir: str
+
+
+def load(run: Run) -> Trained:
+    """Restore the parameters of ``run`` (its latest / chosen checkpoint).
+
+    Raises:
+        RunError: not an interaction run, incomplete ``run.json`` or an unreadable checkpoint (one line).
+    """
+    from inbetween_jax.models.interaction.train import init_state
+    if run.model != "interaction":
+        raise RunError(f"{run.run_dir}: holds a {run.model} run, not an interaction run")
+    try:
+        cfg = config_from_dict(Config, run.config)
+        J = int(run.extra["num_joints"])
+        fa = np.asarray(run.extra["forward_axis"], np.float64).reshape(3)
+    except (KeyError, TypeError, ValueError) as e:
+        raise RunError(f"{run.run_dir}: run.json is incomplete for an interaction run ({e})") from None
+    target = jax.eval_shape(lambda k: init_state(cfg, J, k), jax.random.key(0))
+    state = restore_state(run, target)
+    skel = Skeleton.from_dict(run.skeleton) if run.skeleton else None
+    return Trained(cfg, state["params"], J, fa, skel, int(run.step), run.run_dir)
+
+
+def infill_features(trained: Trained, context, keyframes, frames: int, num_samples: int, seed: int = 0):
+    """Roll the interaction network out for ``frames`` frames after two characters' context windows.
+
+    context: (2, n_input, J, 9) world features (positions + forward/up of global rotations) of the frames
+    up to the start frame; keyframes: (2, J, 9) world features of the keyposes.  The network has no
+    time-to-arrival input: it is rolled out for exactly ceil(frames / n_pred) steps (no early stop) and the
+    first ``frames`` frames are kept.  Returns (S, 2, frames, J, 9) world features (float64).
+    """
+    cfg, fa = trained.cfg, trained.forward_axis
+    b = key_space_inputs(context, keyframes, fa, cfg.data.pos_scale)
+    R, t = root_space(keyframes[:, 0], fa)                                      # key spaces -> world (file units)
+    steps = -(-frames // cfg.data.n_pred)
+    fn = jax.jit(lambda p, w, kp, rr, rt, k: sample_rollouts(p, w, kp, rr, rt, k, cfg, fa.astype(np.float32),
+                                                            steps, num_samples, threshold=-1.0)[0])
+    out = np.asarray(fn(trained.params, b["x"], b["keypose"], b["rel_R"], b["rel_t"], jax.random.key(seed)),
+                     np.float64)[:, 0, :, :frames]                               # (S, 2, frames, J, 9)
+    out[..., :3] /= cfg.data.pos_scale
+    return apply_space(out, R[None, :, None], t[None, :, None])
+
+
+def features_to_motion(feats, motion, start: int, key_motion, key_frame: int):
+    """A character's generated world features (T, J, 9) -> a Motion on ``motion``'s skeleton holding
+    [frame ``start`` of ``motion``, the T generated frames, frame ``key_frame`` of ``key_motion``].
+
+    Rotations: the predicted global rotations (forward / up) made local, then every bone swung onto the
+    predicted position of its main child with :func:`inbetween_jax.geometry.fit.fit_rotations`
+    (swing-only; twist from the predicted rotations; bone lengths are the skeleton's, so the written
+    positions differ from the network's by its bone-length error).
+    """
+    skel = motion.skeleton
+    gq = quat_normalize(quat_from_forward_up(np.asarray(feats[..., 3:], np.float64)))
+    par = np.asarray(skel.parents[1:])
+    lq = np.concatenate([gq[:, :1], quat_mul(quat_inv(gq[:, par]), gq[:, 1:])], axis=1)
+    lp = np.broadcast_to(motion.local_pos[start], lq.shape[:-1] + (3,)).copy()
+    lq, lp = fit_rotations(feats[..., :3], lq, lp, skel.parents, np.ones(len(lq), bool))
+    q = np.concatenate([motion.local_quats[start][None], lq, key_motion.local_quats[key_frame][None]])
+    p = np.concatenate([motion.local_pos[start][None], lp, key_motion.local_pos[key_frame][None]])
+    return dataclasses.replace(motion, local_quats=quat_fix_sign_np(quat_normalize(q)), local_pos=p)
+
+
+def _sample_names(n: int) -> list:
+    width = max(2, len(str(n - 1)))
+    return [f"sample_{i:0{width}d}" for i in range(n)]
+
+
+def infill(args, run: Run) -> InfillResult:
+    """``inbetween infill --model interaction``: args ``a``, ``b``, ``key_a``, ``key_b``, ``frames``,
+    ``samples``, ``seed``.  Each sample is two Motions (``<name>_A.bvh`` / ``<name>_B.bvh``) of frames + 2
+    frames: the start frame, the generated frames, the keyframe.
+
+    Raises:
+        UserError: unreadable / mismatching inputs, too little context, too many frames, non-finite output.
+    """
+    cfg = config_from_dict(Config, run.config)
+    skel = Skeleton.from_dict(run.skeleton) if run.skeleton else None
+    num_joints = run.extra.get("num_joints")
+    n_in = cfg.data.n_input
+    cache = {}
+    chars = []
+    for opt, kopt, spec, kspec in (("--a", "--key-a", args.a, args.key_a), ("--b", "--key-b", args.b, args.key_b)):
+        path, m, start = read_keyframe(spec, opt, -1, cache)
+        kpath, km, kf = read_keyframe(kspec, kopt, -1, cache)
+        check_skeleton(m.skeleton, path, skel, num_joints)
+        same_skeleton(km.skeleton, kpath, m.skeleton, path)
+        if start < n_in - 1:
+            raise UserError(f"{opt} {path}:{start}: the model needs {n_in} frames of context up to the start frame; "
+                            f"choose a start frame >= {n_in - 1}")
+        chars.append((path, m, start, kpath, km, kf))
+    (pa, ma, _, _, _, _), (pb, mb, _, _, _, _) = chars
+    if abs(ma.frame_time - mb.frame_time) > 1e-6:
+        raise UserError(f"{pb}: {mb.fps:.3f} fps differs from {pa} ({ma.fps:.3f} fps)")
+    if args.frames > cfg.model.max_frames:
+        raise UserError(f"--frames {args.frames}: this interaction checkpoint rolls out at most "
+                        f"{cfg.model.max_frames} frames (model.max_frames)")
+    context = np.stack([world_joint_features(m)[s - n_in + 1:s + 1] for _, m, s, _, _, _ in chars])
+    keys = np.stack([world_joint_features(km.slice(kf, kf + 1))[0] for _, _, _, _, km, kf in chars])
+    trained = load(run)
+    feats = infill_features(trained, context, keys, args.frames, args.samples, args.seed)
+    finite_or_fail(run.run_dir, feats)
+    samples = []
+    for i, name in enumerate(_sample_names(args.samples)):
+        motions = []
+        for c, (path, m, s, _, km, kf) in enumerate(chars):
+            motion = features_to_motion(feats[i, c], m, s, km, kf)
+            finite_or_fail(run.run_dir, motion.local_quats, motion.local_pos)
+            motions.append(motion)
+        samples.append((name, motions, None))
+    summary = {"a": f"{pa}:{chars[0][2]}", "b": f"{pb}:{chars[1][2]}", "key_a": f"{chars[0][3]}:{chars[0][5]}",
+               "key_b": f"{chars[1][3]}:{chars[1][5]}", "frames": args.frames, "samples": args.samples,
+               "step": trained.step}
+    return InfillResult(samples=samples, summary=summary, what="start / keyframe")

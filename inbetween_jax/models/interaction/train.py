@@ -1,0 +1,80 @@
+"""Training of the interaction in-betweening model: ``load_data`` and ``make_training`` for
+:func:`inbetween_jax.runner.train_model` / :func:`inbetween_jax.train.run_training`.
+
+Per step (Sec. 4.1.3 and 4.2): P autoregressive steps (``lax.scan``) with scheduled sampling, the generator /
+refiner / PAE objective (:func:`.losses.generator_objective`) and the discriminator loss on the PAE latents
+of real and generated PJD dynamics.  The parameter groups are disjoint and every group only receives
+gradients of its own loss, so one Adam over all groups equals independent optimisers.
+
+State: ``{"params": {gen, ref, pae, disc} (nested dicts of arrays), "opt": optax state, "step": int32}``.
+"""
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from inbetween_jax.models.interaction.data import PairSet, load_pair_set, sample_batch
+from inbetween_jax.models.interaction.losses import discriminator_objective, generator_objective
+from inbetween_jax.models.interaction.model import init_params
+from inbetween_jax.models.spec import Training
+from inbetween_jax.train.optim import make_optimizer
+
+__all__ = ["BATCH_KEYS", "load_data", "init_state", "make_training"]
+
+BATCH_KEYS = ("x", "keypose", "rel_R", "rel_t")
+
+
+def load_data(cfg, source, split: str = "train") -> PairSet:
+    """The ``split`` pairs of ``source`` (real pairs, else constructed ones; see :mod:`.data`)."""
+    return load_pair_set(source, split, cfg.data.pair_distance, cfg.data.split)
+
+
+def init_state(cfg, num_joints: int, key) -> dict:
+    """Fresh training state: ``{"params", "opt", "step"}`` (parameters from :func:`.model.init_params`)."""
+    params = init_params(key, cfg, num_joints)
+    return {"params": params, "opt": make_optimizer(cfg.train).init(params), "step": jnp.zeros((), jnp.int32)}
+
+
+def make_training(cfg, data: PairSet) -> Training:
+    """The pure ``init_fn`` / ``step_fn`` / ``batch_fn`` and the run metadata for ``data`` (:func:`load_data`)."""
+    tx = make_optimizer(cfg.train)
+    d, m = cfg.data, cfg.model
+    T, N = d.n_input, d.ar_steps * d.n_pred
+    if m.gan and m.pjd_frames != N:
+        raise ValueError(f"model.pjd_frames ({m.pjd_frames}) must equal data.ar_steps * data.n_pred ({N})")
+    J = data.num_joints
+    fa = np.asarray(data.forward_axis, np.float32)
+    pairs = data.pairs
+
+    def init_fn(key):
+        return init_state(cfg, J, key)
+
+    def step_fn(state, batch, key):
+        params = state["params"]
+        batch = dict(batch, step=state["step"].astype(jnp.float32))
+        grads, (metrics, aux) = jax.grad(generator_objective, has_aux=True)(params, batch, key, cfg, fa)
+        if m.gan:
+            dl, gd = jax.value_and_grad(discriminator_objective)(params["disc"], params["pae"], aux["pjd_real"],
+                                                                 aux["pjd_fake"], cfg, J)
+            grads = dict(grads, disc=gd)
+            metrics["disc"] = dl
+        updates, opt = tx.update(grads, state["opt"], params)
+        params = optax.apply_updates(params, updates)
+        return {"params": params, "opt": opt, "step": state["step"] + 1}, metrics
+
+    def batch_fn(step, key):
+        rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).astype(np.uint32))
+        b = sample_batch(pairs, rng, cfg.train.batch_size, T + N, (d.key_min, d.key_max), d.mirror, d.pos_scale)
+        return {k: b[k] for k in BATCH_KEYS}
+
+    kind = "constructed" if data.constructed else "real"
+    meta = dict(skeleton=data.skeleton.to_dict(), fps=float(pairs[0].fps), stats={},
+                data={"pairs": data.all_pairs, "counts": {"pairs": len(data.all_pairs), "split_pairs": len(pairs),
+                                                          "frames": data.num_frames},
+                      "split": data.split, "fractions": list(d.split), "constructed": data.constructed},
+                extra={"num_joints": J, "forward_axis": [float(v) for v in data.forward_axis]})
+    describe = (f"{len(data.all_pairs)} {kind} pairs, {data.num_frames} {data.split} frames, {J} joints; "
+                f"batches of {cfg.train.batch_size} windows of {T + N} frames")
+    return Training(init_fn, step_fn, batch_fn, cfg.train.num_steps, meta, describe)
