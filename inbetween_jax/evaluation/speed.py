@@ -144,21 +144,21 @@ def scvae_rows(source, reps, quick, widths=("paper", "cpu"), torch_ref=None):
 def cae_rows(source, reps, quick):
     import jax
     import jax.numpy as jnp
-    from flax import nnx
 
     from inbetween_jax.data import load_motions
-    from inbetween_jax.models import cae
-    from inbetween_jax.models.cae_data import motion_features
+    from inbetween_jax.models.cae import model as cae
+    from inbetween_jax.models.cae.config import get_config
+    from inbetween_jax.models.cae.features import body_frame_features
     from inbetween_jax.profiling import median_ms, time_calls
 
     frames = 1927
     motions = load_motions(source, "train") + load_motions(source, "test")
-    feats = np.concatenate([motion_features(m).features for m in motions])
+    feats = np.concatenate([body_frame_features(m).features for m in motions])
     x = np.tile(feats, (int(np.ceil(frames / len(feats))), 1))[:frames]          # real frames, repeated if short
     x = ((x - x.mean(0)) / (x.std(0) + 1e-3)).T[None].astype(np.float32)      # (1, D, 1927)
-    model = cae.make_model("cae", x.shape[1])
-    gdef, params = nnx.split(model)
-    fwd = jax.jit(lambda p, v: nnx.merge(gdef, p)(v))
+    cfg = get_config("paper")
+    params = cae.init_params(jax.random.key(0), cfg, x.shape[1])
+    fwd = jax.jit(lambda p, v: cae.apply(p, v, cfg))
     xj = jnp.asarray(x)
     out = {"frames": frames, "rows": int(x.shape[1]), "params": int(sum(a.size for a in jax.tree.leaves(params)))}
     out["compile"] = _compile_pair(fwd, params, xj)
@@ -171,29 +171,29 @@ def interaction_rows(source, reps, quick):
     import jax
     import jax.numpy as jnp
 
-    from inbetween_jax.configs.interaction import get_config
     from inbetween_jax.data import load_motions
-    from inbetween_jax.models import interaction as I
-    from inbetween_jax.models.interaction_data import (_forward_axis, keyframe_sample, motion_features,
-                                                       scale_positions)
+    from inbetween_jax.models.interaction import model as I
+    from inbetween_jax.models.interaction.config import get_config
+    from inbetween_jax.models.interaction.features import (keyframe_sample, scale_positions, skeleton_forward_axis,
+                                                           world_joint_features)
     from inbetween_jax.profiling import median_ms, time_calls
 
-    cfg = get_config("default")
+    cfg = get_config("cpu")
     motions = load_motions(source, "train")
     m = max(motions, key=lambda mm: mm.num_frames)
-    feats = motion_features(m)                                    # (T, J, 9) real frames
-    fa = _forward_axis(m.skeleton)
+    feats = world_joint_features(m)                               # (T, J, 9) real frames
+    fa = skeleton_forward_axis(m.skeleton)
     t_in = cfg.data.n_input
     pair = np.stack([feats, feats[::-1].copy()])                   # two real performances, same length
     ks = keyframe_sample(pair, 0, t_in, min(len(feats) - 1, t_in + 30), fa)
     ks = {k: np.asarray(v, np.float32)[None] for k, v in scale_positions(ks, 0.01).items()}
     win, key, eye, zero = (jnp.asarray(ks[k]) for k in ("x", "keypose", "rel_R", "rel_t"))
-    nets, params = I.init_params(jax.random.key(0), feats.shape[1], cfg)
+    params = I.init_params(jax.random.key(0), cfg, feats.shape[1])
     fa_j = jnp.asarray(fa, jnp.float32)
 
     def one_step(p, w, kp, k):
-        o = I.generator_step(nets.gen, p["gen"], w, kp, eye, zero, k, cfg, fa_j)
-        return I.refine(nets.ref, p["ref"], o["pred"]) if cfg.model.refiner else o["pred"]
+        o = I.generator_step(p["gen"], w, kp, eye, zero, k, cfg, fa_j)
+        return I.refine(p["ref"], o["pred"], cfg) if cfg.model.refiner else o["pred"]
 
     step = jax.jit(one_step)
     k0 = jax.random.key(3)

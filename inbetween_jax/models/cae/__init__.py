@@ -12,3 +12,8 @@ train.py     load_data, make_training
 infer.py     load(run), fill, process_motion (fill a user's motion, refit rotations), infill (CLI)
 bench.py     the paper's Tables 1 / 2 (protocol: inbetween_jax.evaluation.infilling)
 """
+
+INFILL_OPTIONS = {   # ``inbetween infill --model cae``: dest -> (metavar, help)
+    "bvh": ("FILE.bvh", "the BVH file to fill"),
+    "gaps": ("START:STOP[,...]", "frame ranges to fill (STOP exclusive); overlapping ranges are merged"),
+}

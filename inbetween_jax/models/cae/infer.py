@@ -6,7 +6,7 @@
 * :func:`process_motion` corrupts a whole motion (gaps, noise, joint dropout, missing joints), fills it,
   integrates the root trajectory back (:func:`~inbetween_jax.models.cae.features.to_global`) and fits BVH
   rotations (:func:`inbetween_jax.geometry.fit.fit_rotations`);
-* :data:`INFILL_OPTIONS` / :func:`infill`: ``inbetween infill --model cae --bvh IN.bvh --gaps 100:160,...``.
+* :func:`infill` (options: the package's ``INFILL_OPTIONS``): ``inbetween infill --model cae --bvh IN.bvh --gaps 100:160,...``.
 """
 from __future__ import annotations
 
@@ -31,11 +31,7 @@ from inbetween_jax.models.spec import InfillResult
 from inbetween_jax.train.config import config_from_dict
 from inbetween_jax.train.run import Run, RunError, restore_state
 
-__all__ = ["TrainedCAE", "load", "fill", "slerp_gaps", "process_motion", "INFILL_OPTIONS", "infill"]
-
-INFILL_OPTIONS = {"bvh": "the BVH file to fill",
-                  "gaps": "frame ranges to fill, START:STOP[,START:STOP...] (STOP exclusive)"}
-
+__all__ = ["TrainedCAE", "load", "fill", "slerp_gaps", "process_motion", "infill"]
 
 class TrainedCAE:
     """A restored model: ``predict(x_norm (B, D, T)) -> (B, D, T)`` (jitted), its normaliser, skeleton,

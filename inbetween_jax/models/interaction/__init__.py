@@ -9,3 +9,11 @@ and the pure generator step / refiner / rollouts; ``losses.py`` the loss terms; 
 step for :func:`inbetween_jax.train.run_training`; ``infer.py`` restoring a run and infilling users' BVH
 files; ``bench.py`` the paper's Table 1 rows (protocol in :mod:`inbetween_jax.evaluation.interaction`).
 """
+
+INFILL_OPTIONS = {   # ``inbetween infill --model interaction``: dest -> (metavar, help)
+    "a": ("FILE.bvh[:START]", "character A's context up to its start frame (default last frame)"),
+    "b": ("FILE.bvh[:START]", "character B's context up to its start frame (default last frame)"),
+    "key_a": ("FILE.bvh[:FRAME]", "A's keyframe (default last frame)"),
+    "key_b": ("FILE.bvh[:FRAME]", "B's keyframe (default last frame)"),
+    "frames": ("N", "generated frames between the start frames and the keyframes"),
+}

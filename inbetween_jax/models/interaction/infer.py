@@ -27,16 +27,7 @@ from inbetween_jax.models.spec import InfillResult
 from inbetween_jax.train.config import config_from_dict
 from inbetween_jax.train.run import Run, RunError, restore_state
 
-__all__ = ["Trained", "INFILL_OPTIONS", "load", "infill_features", "features_to_motion", "infill"]
-
-INFILL_OPTIONS = {
-    "a": "character A's context: FILE.bvh[:START_FRAME] (default last frame); the model reads the frames up to it",
-    "b": "character B's context: FILE.bvh[:START_FRAME] (default last frame)",
-    "key_a": "A's keyframe FILE.bvh[:FRAME] (default last frame)",
-    "key_b": "B's keyframe FILE.bvh[:FRAME] (default last frame)",
-    "frames": "generated frames between the start frames and the keyframes",
-}
-
+__all__ = ["Trained", "load", "infill_features", "features_to_motion", "infill"]
 
 @dataclasses.dataclass
 class Trained:

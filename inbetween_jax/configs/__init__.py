@@ -1,1 +1,0 @@
-"""Experiment configurations, flax-examples style: ``get_config(name)`` per model."""
