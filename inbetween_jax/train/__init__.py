@@ -25,7 +25,7 @@ from .parallel import make_mesh, make_parallel_step_fn, replicate, shard_batch
 
 __all__ = [
     "Checkpointer", "CheckpointError", "ConfigError", "apply_overrides", "config_to_dict", "parse_value",
-    "MetricLogger", "ProgressBar", "format_metrics", "default_cache_dir", "enable_compilation_cache", "make_step_fn",
-    "run_training", "data_parallel", "make_mesh", "make_parallel_step_fn", "replicate", "shard_batch",
-    "distributed",
+    "MetricLogger", "ProgressBar", "format_metrics", "default_cache_dir", "enable_compilation_cache",
+    "make_step_fn", "run_training", "data_parallel", "make_mesh", "make_parallel_step_fn", "replicate",
+    "shard_batch", "distributed",
 ]

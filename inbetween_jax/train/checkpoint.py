@@ -44,7 +44,7 @@ import jax.numpy as jnp
 import numpy as np
 import orbax.checkpoint as ocp
 
-__all__ = ["Checkpointer", "CheckpointError"]
+__all__ = ["Checkpointer", "CheckpointError", "check_step_dir"]
 
 # files orbax writes into every finished step folder, and into each item folder
 _STEP_METADATA = "_CHECKPOINT_METADATA"
@@ -75,9 +75,11 @@ def _quiet() -> Iterator[None]:
             lg.setLevel(level)
 
 
-def _one_line(err: BaseException) -> str:
+def _one_line(err: BaseException, limit: int = 300) -> str:
+    """First line of ``str(err)`` (at most ``limit`` characters), or the exception's type name."""
     text = str(err).strip().splitlines()
-    return (text[0].strip() if text else "") or type(err).__name__
+    line = (text[0].strip() if text else "") or type(err).__name__
+    return line if len(line) <= limit else line[:limit - 3] + "..."
 
 
 def _check_json(path: str, step_dir: str) -> None:
@@ -195,7 +197,7 @@ class Checkpointer:
             return bool(self._manager.save(step, args=args, force=True))
 
     def latest_step(self, required: bool = False) -> int | None:
-        """Most recent *finished* checkpoint step; None if there is none (:class:`CheckpointError` if ``required``)."""
+        """Most recent *finished* checkpoint step; None if there is none (``required``: CheckpointError)."""
         with _quiet():
             step = self._manager.latest_step()
         if step is None and required:
@@ -245,7 +247,7 @@ class Checkpointer:
         return jax.tree.map(_from_restored, state, target_pytree)
 
     def restore_extra(self, step: int | None) -> dict:
-        """The JSON dict saved with ``step`` (``extra_json``; None: the latest); :class:`CheckpointError` as ``restore``."""
+        """The JSON dict saved with ``step`` (``extra_json``; None: the latest); raises like ``restore``."""
         return dict(self._restore(step, "extra", ocp.args.JsonRestore()) or {})
 
     def wait(self) -> None:

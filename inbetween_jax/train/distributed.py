@@ -152,8 +152,8 @@ def launch_local(num_processes: int, argv: Sequence[str], module: str = "inbetwe
     that process fails).  When a process fails the others are stopped and its exit code is returned
     (the first non-zero one); Ctrl-C stops all of them and returns 130; otherwise 0.
 
-    On a machine with accelerators give every process its own devices through ``env`` (e.g.
-    ``JAX_PLATFORMS=cpu`` for a CPU check); a single process already drives all local devices.
+    Every child sees all local devices: on a machine with accelerators pass ``env={"JAX_PLATFORMS": "cpu"}``
+    for a CPU check (a single process already drives all local accelerators through the mesh).
     """
     n = int(num_processes)
     if n < 1:
