@@ -128,7 +128,8 @@ def test_corrupt_metadata(ckdir, capfd, rel):
     with open(os.path.join(ckdir, str(STEP), rel), "w") as f:
         f.write('{"truncated": ')
     with Checkpointer(ckdir) as ck:
-        call = (lambda: ck.restore_extra(STEP)) if rel.startswith("extra") else (lambda: ck.restore(STEP, _target()))
+        extra = rel.startswith("extra")
+        call = (lambda: ck.restore_extra(STEP)) if extra else (lambda: ck.restore(STEP, _target()))
         _assert_one_error(capfd, call, os.path.join(ckdir, str(STEP)), f"corrupt metadata file {rel}")
 
 
@@ -177,14 +178,15 @@ for name, hurt in damage.items():
 def test_damaged_checkpoints_leave_stderr_empty_in_a_fresh_process(tmp_path):
     """Same cases in a plain interpreter: pytest's log capture cannot hide absl / orbax lines there."""
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    proc = subprocess.run([sys.executable, "-c", CHILD, str(tmp_path)], cwd=root, capture_output=True, text=True,
-                          timeout=300, env=dict(os.environ, JAX_PLATFORMS="cpu"))
+    proc = subprocess.run([sys.executable, "-c", CHILD, str(tmp_path)], cwd=root, capture_output=True,
+                          text=True, timeout=300, env=dict(os.environ, JAX_PLATFORMS="cpu"))
     assert proc.returncode == 0 and proc.stderr == "", proc.stderr[-3000:]
     lines = dict(line.split(" | ", 1) for line in proc.stdout.splitlines())
     assert sorted(lines) == ["corrupt", "empty", "missing", "none", "zero"]
     assert lines["empty"] == f"{tmp_path}/empty/7: empty checkpoint folder (an interrupted save? delete it to " \
                              "use an earlier checkpoint)"
-    assert lines["zero"].startswith(f"{tmp_path}/zero/5: file state/") and lines["zero"].endswith("is empty (0 bytes)")
+    assert lines["zero"].startswith(f"{tmp_path}/zero/5: file state/")
+    assert lines["zero"].endswith("is empty (0 bytes)")
     assert lines["missing"].startswith(f"{tmp_path}/missing/5: missing metadata file _CHECKPOINT_METADATA")
     assert lines["corrupt"].startswith(f"{tmp_path}/corrupt/5: corrupt metadata file state/_METADATA")
     assert lines["none"].startswith(f"{tmp_path}/none: no checkpoint found")
