@@ -13,11 +13,14 @@ Public API (names are imported on first use, so ``inbetween_jax.train.config`` s
     data-parallel (``data_parallel`` is the ``train.parallel`` module): make_mesh(num_devices=None) -> Mesh,
     shard_batch(batch, mesh), replicate(state, mesh), make_parallel_step_fn(step_fn, train_base, mesh);
     run_training(..., mesh=make_mesh()) trains with the state replicated and every batch split.
+    several processes (``train.distributed``): initialize() first thing, launch_local(n, argv, module);
+    the same run_training call then trains on the global mesh of all processes.
+    CheckpointError (a ValueError): damaged or missing checkpoints, one line naming the folder.
 """
 import importlib
 
 _NAMES = {
-    "Checkpointer": "checkpoint",
+    "Checkpointer": "checkpoint", "CheckpointError": "checkpoint",
     "ConfigError": "config", "TrainConfig": "config", "apply_overrides": "config", "config_from_dict": "config",
     "config_to_dict": "config", "describe_config": "config", "parse_value": "config",
     "MetricLogger": "logging", "ProgressBar": "logging", "format_metrics": "logging",
@@ -26,12 +29,14 @@ _NAMES = {
     "make_optimizer": "optim",
     "Run": "run", "RunError": "run", "load_run": "run", "restore_state": "run", "write_run": "run",
 }
-__all__ = sorted(_NAMES) + ["data_parallel"]
+__all__ = sorted(_NAMES) + ["data_parallel", "distributed"]
 
 
 def __getattr__(name):
     if name == "data_parallel":
         return importlib.import_module("inbetween_jax.train.parallel")
+    if name == "distributed":
+        return importlib.import_module("inbetween_jax.train.distributed")
     if name in _NAMES:
         return getattr(importlib.import_module(f"inbetween_jax.train.{_NAMES[name]}"), name)
     raise AttributeError(f"module 'inbetween_jax.train' has no attribute {name!r}")

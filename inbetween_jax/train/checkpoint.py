@@ -18,19 +18,102 @@ asynchronous, so ``wait()`` before reading files; the data is copied to host mem
 ``np.asarray`` aliases the device buffer, hence the explicit copy); a step that already exists raises
 ``StepAlreadyExistsError`` (we skip it instead); unfinished ``*.orbax-checkpoint-tmp`` folders left by a
 killed process are ignored by ``latest_step`` and removed on the next construction.
+
+Several processes (``jax.distributed``): every process constructs the ``Checkpointer`` and calls
+``save`` / ``restore`` with the same arguments; orbax synchronises them with barriers and only the
+primary process (``jax.process_index() == 0``) writes the files (numpy leaves, JSON items, metadata).
+The folder must be shared by all processes (one file system).  Restored arrays land on this process's
+first local device; the driver then replicates them over the global mesh.
+
+Damaged checkpoints (an empty step folder, zero-byte files, a missing or unreadable metadata file, a
+folder without checkpoints) raise :class:`CheckpointError`, one line naming the folder and the problem;
+orbax's own absl log lines are silenced during these calls.
 """
 
 from __future__ import annotations
 
+import contextlib
+import gc
+import json
+import logging
 import os
-from typing import Any
+from typing import Any, Iterator
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import orbax.checkpoint as ocp
 
-__all__ = ["Checkpointer"]
+__all__ = ["Checkpointer", "CheckpointError", "check_step_dir"]
+
+# files orbax writes into every finished step folder, and into each item folder
+_STEP_METADATA = "_CHECKPOINT_METADATA"
+_ITEM_METADATA = {"state": "_METADATA", "extra": "metadata"}
+
+
+class CheckpointError(ValueError):
+    """A checkpoint folder that cannot be read; ``str(err)`` is one line naming the folder and the problem."""
+
+
+@contextlib.contextmanager
+def _quiet() -> Iterator[None]:
+    """Silence orbax's absl log lines (and asyncio's "exception never retrieved") for the duration.
+
+    Only these two loggers' levels change, and they are restored on exit.
+    """
+    loggers = [logging.getLogger(name) for name in ("absl", "asyncio")]
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    except BaseException:
+        gc.collect()  # failed tensorstore futures log when collected: do it while silenced
+        raise
+    finally:
+        for lg, level in zip(loggers, levels):
+            lg.setLevel(level)
+
+
+def _one_line(err: BaseException, limit: int = 300) -> str:
+    """First line of ``str(err)`` (at most ``limit`` characters), or the exception's type name."""
+    text = str(err).strip().splitlines()
+    line = (text[0].strip() if text else "") or type(err).__name__
+    return line if len(line) <= limit else line[:limit - 3] + "..."
+
+
+def _check_json(path: str, step_dir: str) -> None:
+    rel = os.path.relpath(path, step_dir)
+    if not os.path.isfile(path):
+        raise CheckpointError(f"{step_dir}: missing metadata file {rel} (incomplete or damaged checkpoint)")
+    try:
+        with open(path, encoding="utf-8") as f:
+            json.load(f)
+    except (OSError, UnicodeDecodeError, ValueError) as e:
+        raise CheckpointError(f"{step_dir}: corrupt metadata file {rel} ({_one_line(e)})") from None
+
+
+def check_step_dir(step_dir: str, items: tuple[str, ...] = ("state", "extra")) -> None:
+    """Raise :class:`CheckpointError` unless ``step_dir`` looks like a complete checkpoint of ``items``.
+
+    Checks (cheap, no array is read): the folder is not empty, no file in it has zero bytes, and the
+    step's and each item's orbax metadata files exist and parse as JSON.
+    """
+    if not os.path.isdir(step_dir):
+        raise CheckpointError(f"{step_dir}: checkpoint folder does not exist")
+    files = [os.path.join(root, f) for root, _, names in os.walk(step_dir) for f in names]
+    if not files:
+        raise CheckpointError(f"{step_dir}: empty checkpoint folder (an interrupted save? delete it to "
+                              "use an earlier checkpoint)")
+    for path in sorted(files):
+        if os.path.getsize(path) == 0:
+            raise CheckpointError(f"{step_dir}: file {os.path.relpath(path, step_dir)} is empty (0 bytes)")
+    _check_json(os.path.join(step_dir, _STEP_METADATA), step_dir)
+    for item in items:
+        if not os.path.isdir(os.path.join(step_dir, item)):
+            raise CheckpointError(f"{step_dir}: no '{item}' item in the checkpoint")
+        _check_json(os.path.join(step_dir, item, _ITEM_METADATA[item]), step_dir)
+
 
 
 def _is_key(x: Any) -> bool:
@@ -46,7 +129,7 @@ def _to_host(x: Any) -> Any:
 
 
 def _abstract(x: Any) -> jax.ShapeDtypeStruct:
-    """Target leaf (array or ShapeDtypeStruct) -> restore spec, placed like the target or on device 0."""
+    """Target leaf (array or ShapeDtypeStruct) -> restore spec, placed like the target or on local device 0."""
     if _is_key(x):
         data = jax.eval_shape(jax.random.key_data, jax.ShapeDtypeStruct(x.shape, x.dtype))
         shape, dtype = data.shape, data.dtype
@@ -55,7 +138,7 @@ def _abstract(x: Any) -> jax.ShapeDtypeStruct:
         dtype = x.dtype if hasattr(x, "dtype") else jnp.result_type(x)
     sharding = getattr(x, "sharding", None)
     if sharding is None or _is_key(x):
-        sharding = jax.sharding.SingleDeviceSharding(jax.devices()[0])
+        sharding = jax.sharding.SingleDeviceSharding(jax.local_devices()[0])
     return jax.ShapeDtypeStruct(shape, dtype, sharding=sharding)
 
 
@@ -91,7 +174,8 @@ class Checkpointer:
         options = ocp.CheckpointManagerOptions(
             max_to_keep=max_to_keep, create=True, cleanup_tmp_directories=True,
             enable_async_checkpointing=async_save)
-        self._manager = ocp.CheckpointManager(self.directory, options=options, item_names=("state", "extra"))
+        with _quiet():
+            self._manager = ocp.CheckpointManager(self.directory, options=options, item_names=("state", "extra"))
 
     def should_save(self, step: int) -> bool:
         """True when ``step`` is a multiple of ``save_every``."""
@@ -104,47 +188,78 @@ class Checkpointer:
         step is already on disk).  Returns once the arrays are copied to host; the write is async.
         """
         step = int(step)
-        if not (force or self.should_save(step)) or step in self._manager.all_steps():
+        if not (force or self.should_save(step)) or step in self.all_steps():
             return False
         host = jax.tree.map(_to_host, pytree_state)
         args = ocp.args.Composite(state=ocp.args.StandardSave(host),
                                   extra=ocp.args.JsonSave(dict(extra_json or {})))
-        return bool(self._manager.save(step, args=args, force=True))
+        with _quiet():
+            return bool(self._manager.save(step, args=args, force=True))
 
-    def latest_step(self) -> int | None:
-        """Most recent *finished* checkpoint step, or None if there is none."""
-        return self._manager.latest_step()
+    def latest_step(self, required: bool = False) -> int | None:
+        """Most recent *finished* checkpoint step; None if there is none (``required``: CheckpointError)."""
+        with _quiet():
+            step = self._manager.latest_step()
+        if step is None and required:
+            raise CheckpointError(f"{self.directory}: no checkpoint found (expected <step>/ folders written "
+                                  "by training)")
+        return step
 
     def all_steps(self) -> list[int]:
         """Sorted steps of all finished checkpoints on disk."""
-        return sorted(self._manager.all_steps())
+        with _quiet():
+            return sorted(self._manager.all_steps())
 
-    def restore(self, step: int, target_pytree: Any) -> Any:
-        """Restore the ``state`` item of ``step`` into the structure of ``target_pytree``.
+    def _step_dir(self, step: int | None, items: tuple[str, ...]) -> tuple[int, str]:
+        """``(step, folder)`` of a checkpoint that passed :func:`check_step_dir`; None = latest."""
+        if step is None:
+            step = self.latest_step(required=True)
+        step = int(step)
+        if step not in self.all_steps():
+            avail = ", ".join(map(str, self.all_steps())) or "none"
+            raise CheckpointError(f"{self.directory}: no checkpoint for step {step} (available: {avail})")
+        step_dir = os.path.join(self.directory, str(step))
+        check_step_dir(step_dir, items)
+        return step, step_dir
+
+    def _restore(self, step: int | None, item: str, arg: Any) -> Any:
+        step, step_dir = self._step_dir(step, (item,))
+        try:
+            with _quiet():
+                out = self._manager.restore(step, args=ocp.args.Composite(**{item: arg}))
+        except (ValueError, KeyError, OSError, TypeError) as e:
+            raise CheckpointError(f"{step_dir}: cannot restore '{item}': {_one_line(e)}") from None
+        return out[item]
+
+    def restore(self, step: int | None, target_pytree: Any) -> Any:
+        """Restore the ``state`` item of ``step`` (None: the latest) into the structure of ``target_pytree``.
 
         Args:
             target_pytree: pytree of arrays or ``jax.ShapeDtypeStruct`` (e.g. ``jax.eval_shape(init_fn, key)``)
                 with the same structure as what was saved; PRNG-key leaves come back as typed keys.
         Returns:
             A pytree of ``jax.Array`` with the structure, shapes and dtypes of ``target_pytree``.
+        Raises:
+            CheckpointError: no such checkpoint, a damaged one, or one that does not match the target.
         """
         abstract = jax.tree.map(_abstract, target_pytree)
-        out = self._manager.restore(int(step), args=ocp.args.Composite(state=ocp.args.StandardRestore(abstract)))
-        return jax.tree.map(_from_restored, out.state, target_pytree)
+        state = self._restore(step, "state", ocp.args.StandardRestore(abstract))
+        return jax.tree.map(_from_restored, state, target_pytree)
 
-    def restore_extra(self, step: int) -> dict:
-        """The JSON dict saved with ``step`` (``extra_json``)."""
-        out = self._manager.restore(int(step), args=ocp.args.Composite(extra=ocp.args.JsonRestore()))
-        return dict(out.extra or {})
+    def restore_extra(self, step: int | None) -> dict:
+        """The JSON dict saved with ``step`` (``extra_json``; None: the latest); raises like ``restore``."""
+        return dict(self._restore(step, "extra", ocp.args.JsonRestore()) or {})
 
     def wait(self) -> None:
         """Block until pending async saves are on disk."""
-        self._manager.wait_until_finished()
+        with _quiet():
+            self._manager.wait_until_finished()
 
     def close(self) -> None:
         """Wait for pending saves and release the manager's resources."""
-        self._manager.wait_until_finished()
-        self._manager.close()
+        with _quiet():
+            self._manager.wait_until_finished()
+            self._manager.close()
 
     def __enter__(self) -> "Checkpointer":
         return self

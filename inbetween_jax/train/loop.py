@@ -17,6 +17,11 @@ uninterrupted run, and (on the same machine / XLA build) reproduces it bitwise.
 
 Step numbering in logs and checkpoints: ``step = n`` means ``n`` updates have been applied; a
 checkpoint at step 10 resumes with ``i = 10`` and logs steps 11, 12, ...
+
+Several processes (``train.distributed``): the same call runs in every process.  Without a ``mesh`` the
+driver uses the global data mesh; every process computes the same global batch and keeps its rows,
+the state is replicated, orbax writes each checkpoint once, and only process 0 writes the metric files
+and shows progress (all processes return the same ``logged`` rows).
 """
 
 from __future__ import annotations
@@ -32,7 +37,10 @@ import numpy as np
 
 from .checkpoint import Checkpointer
 from .config import config_to_dict
+from . import distributed
 from .logging import MetricLogger, ProgressBar
+from .parallel import make_mesh, make_parallel_step_fn, replicate
+from .step import step_body, strongly_typed
 
 __all__ = ["enable_compilation_cache", "default_cache_dir", "make_step_fn", "run_training", "step_body",
            "strongly_typed"]
@@ -63,37 +71,6 @@ def enable_compilation_cache(cache_dir: str | None = None, min_compile_time_secs
     return path
 
 
-def strongly_typed(x: Any) -> Any:
-    """Leaf -> jax.Array without weak type, so init / restored / stepped states share one jit signature."""
-    if isinstance(x, jax.Array) and jax.dtypes.issubdtype(x.dtype, jax.dtypes.prng_key):
-        return x
-    return jnp.asarray(x, dtype=jnp.result_type(x))
-
-
-def _signature(tree: Any) -> Any:
-    return jax.tree.map(lambda x: (tuple(jnp.shape(x)), jnp.result_type(x)), tree)
-
-
-def step_body(train_step_fn: Callable) -> Callable:
-    """Un-jitted ``(state, batch, i, base) -> (state, metrics)`` with the step key ``fold_in(base, i)``.
-
-    The base key is an argument, not a constant baked into the program, so runs with different seeds
-    share one compiled executable (and one persistent-cache entry).  The returned state must keep the
-    input's structure, shapes and dtypes (checked at trace time, otherwise every step would recompile).
-    """
-
-    def step(state, batch, i, base):
-        key = jax.random.fold_in(base, i)
-        new_state, metrics = train_step_fn(state, batch, key)
-        new_state = jax.tree.map(strongly_typed, new_state)
-        if jax.tree.structure(new_state) != jax.tree.structure(state) or _signature(new_state) != _signature(state):
-            raise TypeError("train_step_fn must return a state with the same structure, shapes and dtypes as "
-                            f"its input; got {_signature(new_state)} for {_signature(state)}")
-        return new_state, dict(metrics)
-
-    return step
-
-
 class BoundStep:
     """A jitted ``(state, batch, i, base)`` step bound to one base key: call as ``step(state, batch, i)``.
 
@@ -116,6 +93,22 @@ class BoundStep:
 def make_step_fn(train_step_fn: Callable, train_base: jax.Array) -> BoundStep:
     """:func:`step_body` jitted with the state argument donated, bound to ``train_base``."""
     return BoundStep(jax.jit(step_body(train_step_fn), donate_argnums=0), train_base)
+
+
+def _row(step: int, metrics: dict) -> dict:
+    """The row :meth:`MetricLogger.log` would return, without writing it (non-primary processes)."""
+    return {"step": int(step), **{k: np.asarray(v).item() for k, v in metrics.items() if k != "step"}}
+
+
+def _join_processes() -> None:
+    """Join the multi-process runtime when a launcher asked for it but the program did not."""
+    if distributed.requested_processes() > 1 and not jax.distributed.is_initialized():
+        try:
+            distributed.initialize()
+        except RuntimeError as e:
+            raise RuntimeError(f"{distributed.ENV_NUM_PROCESSES}={distributed.requested_processes()} is set but "
+                               "JAX was used before joining the other processes: call "
+                               "inbetween_jax.train.distributed.initialize() at the start of the program") from e
 
 
 def _check_finite(step: int, metrics: dict) -> None:
@@ -148,6 +141,7 @@ def run_training(init_fn: Callable[[jax.Array], Any],
         compilation_cache: call :func:`enable_compilation_cache` first.
         mesh: optional 1-D ``jax.sharding.Mesh`` (:func:`inbetween_jax.train.make_mesh`): data-parallel
             training, state replicated and every batch split over the mesh (see ``train.parallel``).
+            Under several processes it defaults to the global mesh over all processes' devices.
     Returns:
         ``(state, logged)``: the final state and the rows logged *by this call*,
         each ``{"step": n, name: float, ...}``.
@@ -155,8 +149,12 @@ def run_training(init_fn: Callable[[jax.Array], Any],
         FloatingPointError: ``"non-finite loss 'name' at step N"`` for the first NaN/inf metric; all
             metrics are checked (in step order) before any checkpoint, so no bad state is saved.
     """
+    _join_processes()
     if compilation_cache:
         enable_compilation_cache()
+    if mesh is None and jax.process_count() > 1:
+        mesh = make_mesh()
+    primary = jax.process_index() == 0
     run_dir = os.path.abspath(os.fspath(run_dir))
     log_every, ckpt_every = max(1, int(log_every)), max(1, int(ckpt_every))
     init_key, data_base, train_base = jax.random.split(jax.random.key(seed), 3)
@@ -176,12 +174,11 @@ def run_training(init_fn: Callable[[jax.Array], Any],
             state = ckpt.restore(start, jax.eval_shape(init_fn, init_key))
             state = jax.tree.map(strongly_typed, state)
 
-        logger = MetricLogger(run_dir, resume_step=start)
-        bar = ProgressBar(num_steps, initial=start, disable=not progress)
+        logger = MetricLogger(run_dir, resume_step=start) if primary else None
+        bar = ProgressBar(num_steps, initial=start, disable=not (progress and primary))
         if mesh is None:
             step_fn = make_step_fn(train_step_fn, train_base)
         else:
-            from .parallel import make_parallel_step_fn, replicate
             state, step_fn = replicate(state, mesh), make_parallel_step_fn(train_step_fn, train_base, mesh)
         config_json = config_to_dict(config)
         logged: list[dict] = []
@@ -200,7 +197,7 @@ def run_training(init_fn: Callable[[jax.Array], Any],
                 for s, m in host:
                     _check_finite(s, m)
                 if do_log:
-                    logged.append(logger.log(n, host[-1][1]))
+                    logged.append(logger.log(n, host[-1][1]) if logger is not None else _row(n, host[-1][1]))
                 bar.update(len(host), metrics=host[-1][1] if do_log else None)
             if do_ckpt:
                 ckpt.save(n, state, extra_json={"step": n, "seed": seed, "data": {"next_step": n},

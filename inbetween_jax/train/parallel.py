@@ -11,6 +11,12 @@ one device up to float summation order.
 
 On CPU several host devices can be faked with ``XLA_FLAGS=--xla_force_host_platform_device_count=N``
 (set before JAX is imported).
+
+Several processes (``train.distributed``): the mesh spans ``jax.devices()`` of all processes.  Every
+process builds the same global batch and keeps the rows of its own devices, which
+``jax.make_array_from_process_local_data`` assembles into one global array; the state is replicated
+from each process's identical host copy.  The global batch is therefore bitwise the one of a
+single-process run.
 """
 from __future__ import annotations
 
@@ -20,13 +26,13 @@ import jax
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
 
-from .loop import step_body
+from .step import step_body
 
-__all__ = ["make_mesh", "shard_batch", "replicate", "make_parallel_step_fn"]
+__all__ = ["make_mesh", "shard_batch", "replicate", "make_parallel_step_fn", "local_rows"]
 
 
 def make_mesh(num_devices: int | None = None, axis: str = "data") -> Mesh:
-    """1-D mesh over the first ``num_devices`` devices (default: all of ``jax.devices()``)."""
+    """1-D mesh over the first ``num_devices`` devices (default: all of ``jax.devices()``, every process's)."""
     devices = jax.devices()
     n = len(devices) if num_devices is None else int(num_devices)
     if not 1 <= n <= len(devices):
@@ -55,22 +61,60 @@ def shard_batch(batch: Any, mesh: Mesh) -> Any:
     axis = _axis(mesh)
     n = mesh.size
     split, rep = NamedSharding(mesh, P(axis)), NamedSharding(mesh, P())
+    local = _is_local(mesh)
 
     def put(x):
         if np.ndim(x) == 0:
-            return jax.device_put(x, rep)
+            return jax.device_put(x, rep) if local else _global(x, rep)
         b = np.shape(x)[0]
         if b % n:
             raise ValueError(f"batch size {b} is not divisible by the number of devices {n} "
                              f"(mesh axis '{axis}'); use a batch size that is a multiple of {n}")
-        return jax.device_put(x, split)
+        if local:
+            return jax.device_put(x, split)
+        if isinstance(x, jax.Array) and x.sharding == split:
+            return x
+        return jax.make_array_from_process_local_data(split, local_rows(x, split), np.shape(x))
 
     return jax.tree.map(put, batch)
 
 
+def _is_local(mesh: Mesh) -> bool:
+    """True when this process addresses every device of ``mesh`` (always so for one process)."""
+    return all(d.process_index == jax.process_index() for d in mesh.devices.flat)
+
+
+def local_rows(x: Any, sharding: NamedSharding) -> np.ndarray:
+    """The rows of the global (B, ...) array ``x`` that live on this process's devices, in device order.
+
+    Returns (B_local, ...): the concatenation of the distinct row blocks of the addressable devices,
+    sorted by their first row -- the ``local_data`` layout ``jax.make_array_from_process_local_data``
+    expects.
+    """
+    x = np.asarray(x)
+    starts = sorted({(idx[0].start or 0, idx[0].stop if idx[0].stop is not None else x.shape[0])
+                     for idx in sharding.addressable_devices_indices_map(x.shape).values()})
+    return np.concatenate([x[a:b] for a, b in starts], axis=0)
+
+
+def _global(x: Any, rep: NamedSharding) -> jax.Array:
+    """Host value (identical on every process) -> array replicated over a multi-process mesh."""
+    if isinstance(x, jax.Array) and jax.dtypes.issubdtype(x.dtype, jax.dtypes.prng_key):
+        data = _global(jax.random.key_data(x), rep)
+        return jax.random.wrap_key_data(data, impl=jax.random.key_impl(x))
+    host = np.asarray(x)
+    return jax.make_array_from_process_local_data(rep, host, host.shape)
+
+
 def replicate(state: Any, mesh: Mesh) -> Any:
-    """Copy every leaf of ``state`` (arrays, typed PRNG keys) onto all devices of ``mesh``."""
-    return jax.device_put(state, NamedSharding(mesh, P()))
+    """Copy every leaf of ``state`` (arrays, typed PRNG keys) onto all devices of ``mesh``.
+
+    With several processes every process must pass the same values (e.g. the same init / restore).
+    """
+    rep = NamedSharding(mesh, P())
+    if _is_local(mesh):
+        return jax.device_put(state, rep)
+    return jax.tree.map(lambda x: _global(x, rep), state)
 
 
 def make_parallel_step_fn(train_step_fn: Callable, train_base: jax.Array, mesh: Mesh) -> Callable:
@@ -83,7 +127,7 @@ def make_parallel_step_fn(train_step_fn: Callable, train_base: jax.Array, mesh: 
     rep = NamedSharding(mesh, P())
     jitted = jax.jit(step_body(train_step_fn), in_shardings=(rep, None, rep, rep),
                      out_shardings=(rep, rep), donate_argnums=0)
-    base = jax.device_put(train_base, rep)
+    base = replicate(train_base, mesh)
 
     def step(state, batch, i):
         return jitted(state, shard_batch(batch, mesh), i, base)
