@@ -75,8 +75,13 @@ def run(args) -> int:
     if args.num_processes > 1:
         from inbetween_jax.train import distributed
         return distributed.launch_local(args.num_processes, _without_num_processes(sys.argv[1:]))
+    from inbetween_jax.train import distributed
+    index, count = distributed.initialize()        # a no-op for one process; a cluster launcher is auto-detected
     from inbetween_jax.runner import train_model
-    train_model(args.model, args.preset, args.overrides, args.source, args.run_dir, progress=not args.no_progress)
+    primary = index == 0
+    train_model(args.model, args.preset, args.overrides, args.source, args.run_dir,
+                progress=primary and not args.no_progress, log=print if primary else None,
+                mesh=distributed.global_mesh() if count > 1 else None)
     return 0
 
 
