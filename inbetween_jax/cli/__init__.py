@@ -53,7 +53,12 @@ def main(argv=None) -> int:
     """Run the ``inbetween`` command line ``argv`` (default ``sys.argv[1:]``); returns the exit status."""
     argv = sys.argv[1:] if argv is None else list(argv)
     try:
-        args = build_parser().parse_args(argv)
+        args, extra = build_parser().parse_known_args(argv)
+        if extra and getattr(args, "command", None) == "train":     # key=value overrides after options
+            args.overrides = list(args.overrides) + [a for a in extra if "=" in a and not a.startswith("-")]
+            extra = [a for a in extra if not ("=" in a and not a.startswith("-"))]
+        if extra:
+            raise ArgError(f"inbetween {args.command or ''}: unrecognized arguments: {' '.join(extra)}".replace("  ", " "))
     except ArgError as e:
         return fail(str(e))
     except SystemExit as e:                       # --help
