@@ -324,8 +324,7 @@ def plot_error_over_time(times, mean, lo, hi, path, label: str, baseline: Option
 # ------------------------------------------------------------------------------- BVH previews
 def motion_positions(motion) -> np.ndarray:
     """(T, J, 3) global joint positions of a :class:`inbetween_jax.data.Motion` (forward kinematics)."""
-    from inbetween_jax.geometry import forward_kinematics
-    return np.asarray(forward_kinematics(motion.local_quats, motion.local_pos, motion.skeleton.parents)[1])
+    return np.asarray(motion.global_positions())
 
 
 def preview_writers(positions, parents, name: str, *, fps: float = 30.0, every: int = 5,

@@ -162,7 +162,7 @@ def test_deferred_weight_gradients_equal_autodiff(setup, switch):
     params = jax.tree.map(jnp.asarray, _ablated_params(state["params"], switch)) if switch else state["params"]
     args = (state["disc"], cfg, state["stats"], batch, jax.random.key(5), data.parents, MAXLEN)
     plain = jax.grad(lambda p: T.generator_loss(p, *args)[0])(params)
-    taps = D.make_taps(params, cfg.model, batch["q"].shape[0], MAXLEN)
+    taps = D.make_taps(params, cfg.model, batch["q"].shape[0], M.num_scan_steps(cfg.model, MAXLEN))
     (_, (_, _, recs)), (g, g_taps) = jax.value_and_grad(
         lambda p, t: T.generator_loss(p, *args, t), argnums=(0, 1), has_aux=True)(params, taps)
     assert recs, "no matmul inputs were recorded"

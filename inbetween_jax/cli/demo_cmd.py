@@ -67,8 +67,16 @@ def _claim(folder: str) -> None:
     open(os.path.join(folder, MARKER), "w").close()
 
 
+def _infill(argv: list) -> int:
+    """Run ``inbetween infill ...argv`` in this process (its own parser: no import of the top-level CLI)."""
+    from inbetween_jax.cli import infill_cmd
+    parser = argparse.ArgumentParser(prog="inbetween")
+    infill_cmd.add_parser(parser.add_subparsers())
+    args = parser.parse_args(argv)
+    return args.run(args)
+
+
 def run(args) -> int:
-    from inbetween_jax.cli import main as inbetween
     if args.steps < 1:
         raise UserError(f"--steps must be >= 1, got {args.steps}")
     notice = NOTICE.format(steps=args.steps)
@@ -98,7 +106,7 @@ def run(args) -> int:
         argv = infill_argv(model, os.path.join(args.runs, model), out, not args.no_gif)
         print(f"== {model}\n$ inbetween {shlex.join(argv)}", flush=True)
         t = time.time()
-        rc = inbetween(argv)
+        rc = _infill(argv)
         if rc:
             return rc
         print(f"   {time.time() - t:.0f} s", flush=True)

@@ -50,6 +50,12 @@ class Motion:
         """(T, 3) root trajectory."""
         return self.local_pos[:, 0]
 
+    def global_positions(self) -> np.ndarray:
+        """(T, J, 3) world joint positions (forward kinematics, float64)."""
+        from inbetween_jax.geometry.kinematics import forward_kinematics
+        return forward_kinematics(np.asarray(self.local_quats, np.float64), np.asarray(self.local_pos, np.float64),
+                                  self.skeleton.parents)[1]
+
     def slice(self, start: int, stop: int, step: int = 1) -> "Motion":
         return dataclasses.replace(self, local_quats=self.local_quats[start:stop:step],
                                    local_pos=self.local_pos[start:stop:step],

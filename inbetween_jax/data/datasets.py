@@ -236,7 +236,8 @@ def _notice(line: Optional[str]) -> None:
 
 
 def cache_dir() -> str:
-    return os.path.abspath(os.path.expanduser(os.environ.get("INBETWEEN_JAX_CACHE", "~/.cache/inbetween_jax")))
+    from inbetween_jax.paths import cache_root
+    return cache_root()
 
 
 def _cache_key(files, settings) -> str:

@@ -45,17 +45,11 @@ from .step import step_body, strongly_typed
 __all__ = ["enable_compilation_cache", "default_cache_dir", "make_step_fn", "run_training", "step_body",
            "strongly_typed"]
 
-CACHE_ENV = "INBETWEEN_JAX_CACHE"
-
-
 def default_cache_dir() -> str:
-    """``$INBETWEEN_JAX_CACHE/jax_cache`` (default root ``~/.cache/inbetween_jax``), absolute.
-
-    ``$INBETWEEN_JAX_CACHE`` is the package-wide cache root (``data.datasets`` keeps its window caches
-    there too), so compiled executables live in their own ``jax_cache`` sub-folder.
-    """
-    root = os.environ.get(CACHE_ENV) or os.path.join("~", ".cache", "inbetween_jax")
-    return os.path.abspath(os.path.join(os.path.expanduser(root), "jax_cache"))
+    """``$INBETWEEN_JAX_CACHE/jax_cache`` (default root ``~/.cache/inbetween_jax``, :func:`inbetween_jax.paths.cache_root`),
+    absolute: the package-wide cache root holds the window caches, compiled executables their own sub-folder."""
+    from inbetween_jax.paths import cache_root
+    return os.path.join(cache_root(), "jax_cache")
 
 
 def enable_compilation_cache(cache_dir: str | None = None, min_compile_time_secs: float = 0.1) -> str:

@@ -20,7 +20,6 @@ from typing import Sequence
 import numpy as np
 
 from inbetween_jax.data.features import Normalizer
-from inbetween_jax.geometry import forward_kinematics
 from inbetween_jax.geometry.heading import rotate_about_up
 
 __all__ = ["num_features", "MotionFeatures", "smoothed_facing_yaw", "positions_to_features", "body_frame_features",
@@ -112,8 +111,7 @@ def positions_to_features(global_pos: np.ndarray, yaw: np.ndarray) -> np.ndarray
 
 def body_frame_features(motion, smooth: float = 4.0) -> MotionFeatures:
     """A :class:`~inbetween_jax.data.Motion` -> :class:`MotionFeatures` (FK through the shared geometry)."""
-    _, gp = forward_kinematics(np.asarray(motion.local_quats, np.float64), np.asarray(motion.local_pos, np.float64),
-                               motion.skeleton.parents)
+    gp = motion.global_positions()
     yaw = smoothed_facing_yaw(gp, motion.skeleton, smooth)
     feats = positions_to_features(gp, yaw)
     return MotionFeatures(feats, gp[0, 0, [0, 2]].astype(np.float64), float(yaw[0]), gp.astype(np.float32),

@@ -34,12 +34,10 @@ def tapped_matmul(x, w, tap=None):
     return x @ jax.lax.stop_gradient(w) + tap
 
 
-def make_taps(params: dict, cfg, batch: int, max_length: int) -> dict:
+def make_taps(params: dict, cfg, batch: int, steps: int) -> dict:
     """Zero taps for :func:`~inbetween_jax.models.scvae.model.rollout` (deferred weight gradients of the encoder
     LSTM, the packed decoder LSTM and the first expert layer of each generator): {generator: {name: (S, rows,
-    cols)}} with S the rollout's scan length.  cfg: ModelConfig."""
-    from inbetween_jax.models.scvae.model import num_scan_steps   # model -> layers -> this module
-    steps = num_scan_steps(cfg, max_length)
+    cols)}} with S = ``steps``, the rollout's scan length (``model.num_scan_steps``).  cfg: ModelConfig."""
     out = {}
     for name, g in params.items():
         four_h = g["dec"]["lstm"]["b"].shape[0]

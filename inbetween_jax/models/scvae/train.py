@@ -182,7 +182,7 @@ def make_train_step(cfg, parents: tuple, max_length: int):
     def train_step(state, batch, key):
         stats = state["stats"]
         if cfg.model.deferred_wgrad:   # largest weight gradients as one matmul each after the scan
-            taps = make_taps(state["params"], cfg.model, batch["q"].shape[0], max_length)
+            taps = make_taps(state["params"], cfg.model, batch["q"].shape[0], M.num_scan_steps(cfg.model, max_length))
             grad_fn = jax.value_and_grad(generator_loss, argnums=(0, 8), has_aux=True)
             (loss, (metrics, out, recs)), (g, g_taps) = grad_fn(state["params"], state["disc"], cfg, stats, batch,
                                                                 key, parents, max_length, taps)

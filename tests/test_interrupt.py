@@ -1,0 +1,58 @@
+"""Ctrl-C on the console script: prompt exit with one line and status 130, nothing half-written.
+
+The command runs in a child process (``python -m inbetween_jax.cli``, the console script's entry point) and gets
+SIGINT while it is busy (reading / compiling / drawing); it must end within a few seconds of the signal.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from inbetween_jax.data import read_bvh, write_bvh
+
+ASSETS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "inbetween_jax", "assets", "cmu30")
+
+
+def _interrupt(argv, cwd, after_s: float):
+    proc = subprocess.Popen([sys.executable, "-m", "inbetween_jax.cli", *map(str, argv)], cwd=cwd,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(after_s)
+    if proc.poll() is not None:
+        pytest.skip("the command finished before the interrupt")
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    return proc.returncode, time.monotonic() - sent, out, err
+
+
+def _long_clip(path, frames: int = 6000) -> None:
+    m = read_bvh(os.path.join(ASSETS, "02_01.bvh"))
+    idx = np.concatenate([np.arange(m.num_frames), np.arange(m.num_frames)[::-1]])
+    idx = np.resize(idx, frames)
+    write_bvh(path, type(m)(m.skeleton, m.local_quats[idx], m.local_pos[idx], m.frame_time))
+
+
+@pytest.mark.parametrize("kind", ["preview", "train"])
+def test_ctrl_c_exits_promptly_with_one_line(kind, tmp_path):
+    if kind == "preview":
+        _long_clip(tmp_path / "long.bvh")
+        argv = ["preview", tmp_path / "long.bvh", "--gif", "--out", tmp_path / "out"]
+    else:
+        argv = ["train", "cae", "--preset", "tiny", "--source", "embedded", "--run-dir", tmp_path / "out",
+                "--no-progress", "train.num_steps=100000"]
+    rc, waited, out, err = _interrupt(argv, tmp_path, after_s=6.0)
+    assert rc == 130, err
+    assert waited < 10.0, f"exit took {waited:.1f} s after Ctrl-C"
+    lines = [ln for ln in err.replace("\r", "\n").splitlines() if ln.strip()]
+    assert lines[-1] == "inbetween: interrupted" and "Traceback" not in err, err
+    leftovers = [p for p in os.listdir(tmp_path) if p.startswith(".")]
+    assert not leftovers, leftovers                                   # no temporary folder left behind
+    if kind == "preview":
+        out_dir = tmp_path / "out"
+        assert not out_dir.exists() or not [f for f in os.listdir(out_dir) if f.endswith((".png", ".gif"))]
