@@ -128,14 +128,14 @@ def test_run_folder_round_trip_load_sample_and_infill(tmp_path):
     from inbetween_jax.runner import train_model
     from inbetween_jax.train.run import load_run
     run_dir = str(tmp_path / "run")
-    _, logged = train_model("scvae", "tiny", ["train.num_steps=2", "train.ckpt_every=2", "train.log_every=1"],
-                            source="embedded", run_dir=run_dir, progress=False, log=None)
+    overrides = ["train.num_steps=2", "train.ckpt_every=2", "train.log_every=1"]
+    _, logged = train_model("scvae", "tiny", overrides, source="embedded", run_dir=run_dir, progress=False, log=None)
     assert [r["step"] for r in logged] == [1, 2] and all(np.isfinite(r["loss"]) for r in logged)
     run = load_run(run_dir)
     assert run.model == "scvae" and run.step == 2 and run.extra["num_joints"] == 21
     assert set(run.stats) == {"v_std", "off_std", "pos_unit", "offsets"} and run.stats["offsets"].shape == (21, 3)
     trained = infer.load(run)
-    assert trained.cfg == get_config("tiny") and trained.step == 2
+    assert trained.cfg == apply_overrides(get_config("tiny"), overrides) and trained.step == 2
     # the restored statistics are the run's (not the zero restore target)
     np.testing.assert_allclose(np.asarray(trained.stats["v_std"]), run.stats["v_std"], rtol=1e-6)
     windows = load_dataset(None, "benchmark").take(slice(0, 3))
