@@ -67,8 +67,8 @@ def _modules(key, num_joints: int, cfg) -> dict:
 
 
 def init_params(key, cfg, num_joints: int) -> dict:
-    """-> ``{"gen", "ref", "pae", "disc"}``: each a nested dict of arrays (``nnx.State.to_pure_dict``)."""
-    return {k: nnx.split(v)[1].to_pure_dict() for k, v in _modules(key, num_joints, cfg).items()}
+    """-> ``{"gen", "ref", "pae", "disc"}``: each a nested dict of arrays (``nnx.to_pure_dict``)."""
+    return {k: nnx.to_pure_dict(nnx.split(v)[1]) for k, v in _modules(key, num_joints, cfg).items()}
 
 
 @functools.lru_cache(maxsize=32)
@@ -79,7 +79,7 @@ def _graphs(model_cfg, data_cfg, num_joints: int) -> dict:
     out = {}
     for k, v in mods.items():
         gdef, state = nnx.split(v)
-        out[k] = (gdef, jax.tree.structure(state), jax.tree.structure(state.to_pure_dict()))
+        out[k] = (gdef, jax.tree.structure(state), jax.tree.structure(nnx.to_pure_dict(state)))
     return out
 
 
