@@ -116,7 +116,7 @@ CASES = {
     "unknown_model": (lambda r, t: (["--model", "gan", "--ckpt", r["scvae"]], None), "unknown model 'gan'"),
     "missing_ckpt_folder": (lambda r, t: (_scvae(r, ckpt=str(t / "no_run")), "no_run"), "does not exist"),
     "ckpt_without_checkpoints": (lambda r, t: (_scvae(r, ckpt=str(_mkdir(t / "empty_run"))), "empty_run"),
-                                 "no checkpoint found"),
+                                 "not a run folder (no run.json)"),
     "ckpt_of_other_model": (lambda r, t: (_scvae(r, ckpt=r["interaction"]), "interaction"),
                             "holds a run of model 'interaction', not 'scvae'"),
     "option_of_other_model": (lambda r, t: (_scvae(r) + ["--gaps", "1:2"], None), "--gaps is not used"),
@@ -193,16 +193,18 @@ def test_non_empty_out_is_left_alone(runs, tmp_path, capsys):
 
 
 def test_python_api_rejects_non_unit_quaternions(runs):
-    """``scvae_infill`` checks the keyframes it is given before touching the model."""
-    from inbetween_jax.cli_infill import check_unit_quats, scvae_checkpoint, scvae_infill
-    info = scvae_checkpoint(runs["scvae"])
+    """``infill_between`` checks the keyframes it is given before touching the model."""
+    from inbetween_jax.data.user_input import check_unit_quats
+    from inbetween_jax.models.scvae import infer
+    from inbetween_jax.train.run import load_run
+    trained = infer.Trained(infer.load(load_run(runs["scvae"])).cfg, None, 0, None, {})
     m = read_bvh(CLIP_A)
     good = {"q": m.local_quats[0], "r": m.root_pos[0], "c": np.zeros(4)}
     bad = dict(good, q=m.local_quats[0] * np.where(np.arange(21) == 4, 1.7, 1.0)[:, None])
     with pytest.raises(ValueError, match=r"start keyframe q: quaternion \(4,\) has norm 1\.7"):
-        scvae_infill(info["cfg"], None, m.skeleton, bad, good, 8, 1)
+        infer.infill_between(trained, m.skeleton, bad, good, 8, 1)
     with pytest.raises(ValueError, match="end keyframe q: quaternions hold NaN"):
-        scvae_infill(info["cfg"], None, m.skeleton, good, dict(good, q=good["q"] * np.nan), 8, 1)
+        infer.infill_between(trained, m.skeleton, good, dict(good, q=good["q"] * np.nan), 8, 1)
     with pytest.raises(ValueError, match="keys: expected quaternions of shape"):
         check_unit_quats(np.ones((3, 3)), "keys")
 
@@ -237,3 +239,50 @@ def test_train_argument_errors(name, tmp_path, capsys):
     assert main(["train"] + argv + ["--run-dir", str(tmp_path / "run")]) == 2
     _expect_one_error(capsys, phrase)
     assert not (tmp_path / "run").exists()
+
+
+def test_overlapping_gaps_are_merged_and_said(runs, tmp_path, capsys):
+    """``--gaps 20:40,30:50`` fills 20:50 once and says so in one note line."""
+    out = tmp_path / "out"
+    assert main(["infill"] + _cae(runs, gaps="20:40,30:50") + ["--out", str(out)]) == 0
+    _, err = capsys.readouterr()
+    assert "inbetween: note: --gaps 20:40,30:50: overlapping gaps merged into 20:50" in err
+    import json
+    assert json.loads((out / "infill.json").read_text())["gaps"] == [[20, 50]]
+
+
+DAMAGED = {   # how a run folder is damaged: expected phrase
+    "empty_step_folder": "no checkpoint found",
+    "zero_byte_files": "",
+    "empty_run_json": "run.json is unreadable",
+    "no_run_json": "not a run folder",
+}
+
+
+@pytest.mark.parametrize("damage", sorted(DAMAGED))
+def test_damaged_run_folder_is_one_line(damage, runs, tmp_path, capfd):
+    """A damaged run folder gives one line naming the folder, with no logging noise on stderr."""
+    import shutil
+    run = tmp_path / "run"
+    shutil.copytree(runs["cae"], run)
+    steps = sorted(int(d) for d in os.listdir(run / "checkpoints") if d.isdigit())
+    if damage == "empty_step_folder":
+        for s in steps:
+            shutil.rmtree(run / "checkpoints" / str(s))
+            (run / "checkpoints" / str(s)).mkdir()
+    elif damage == "zero_byte_files":
+        for dirpath, _, files in os.walk(run / "checkpoints"):
+            for f in files:
+                open(os.path.join(dirpath, f), "w").close()
+    elif damage == "empty_run_json":
+        (run / "run.json").write_text("")
+    else:
+        (run / "run.json").unlink()
+    out = tmp_path / "out"
+    assert main(["infill", "--model", "cae", "--ckpt", str(run), "--bvh", CLIP_A, "--gaps", "10:20",
+                 "--out", str(out)]) == 2
+    _, err = capfd.readouterr()
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("inbetween: error: ") and "run" in lines[0], err
+    assert DAMAGED[damage] in lines[0], lines[0]
+    _assert_nothing_written(out)

@@ -110,6 +110,9 @@ def check_args(args) -> None:
             raise UserError(f"--model {args.model} needs --{dest.replace('_', '-')}")
         if metavar == "N" and value < 1:
             raise UserError(f"--{dest.replace('_', '-')} must be a positive number of frames, got {value}")
+        if metavar.startswith("START:STOP"):
+            from inbetween_jax.data.user_input import parse_gaps
+            parse_gaps(value)
         if metavar.startswith("FILE"):
             path, _ = split_spec(value, "--" + dest.replace("_", "-"))
             _check_file(path)
@@ -156,6 +159,8 @@ def run_infill(args) -> int:
     files.update(result.extra_files)
     summary = dict(result.summary, model=args.model, checkpoint=run.run_dir, step=run.step, seed=args.seed)
     files["infill.json"] = json_writer(summary)
+    for note in result.notes:
+        print(f"inbetween: note: {note}", file=sys.stderr)
     write_outputs(args.out, files)
     print(f"inbetween: wrote {len(files)} files to {args.out}")
     return 0

@@ -11,7 +11,8 @@ A model is a package ``inbetween_jax/models/<name>/`` with these files (roles), 
     bench.py     run(source, results_dir, run_dir, quick) -> {"markdown": str, "rows": [record, ...], ...}
 
 ``__init__.py`` holds the docstring and ``INFILL_OPTIONS = {dest: (metavar, help)}``, the ``inbetween infill``
-options the model needs (metavar ``N``: an int; ``FILE...``: a file the CLI checks before loading anything), and
+options the model needs (metavar ``N``: an int; ``FILE...``: a file the CLI checks before loading anything;
+``START:STOP...``: a gap list, syntax-checked the same way), and
 imports nothing heavy.  Plus one line in :data:`inbetween_jax.models.REGISTRY`.  Nothing here imports a model (or JAX) until a role
 is used, so ``inbetween train MODEL --help`` and argument errors are instant.
 """
@@ -56,11 +57,13 @@ class InfillResult:
     summary: JSON-able facts for ``infill.json`` (inputs, frames, checkpoint step ...).
     extra_files: ``{file name: writer(path)}`` (e.g. a ``.npy`` of predicted positions).
     what: how previews name the frames that were given (``"keyframes"``, ``"known frames"``).
+    notes: one-line remarks for the user about how the inputs were read (e.g. merged gap ranges).
     """
     samples: list
     summary: dict
     extra_files: dict = dataclasses.field(default_factory=dict)
     what: str = "keyframes"
+    notes: list = dataclasses.field(default_factory=list)
 
 
 @dataclasses.dataclass(frozen=True)

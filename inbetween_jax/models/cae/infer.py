@@ -154,7 +154,8 @@ def infill(args, run: Run) -> InfillResult:
     parse_gaps(args.gaps)                                             # syntax first
     motion = read_motion(args.bvh)
     check_skeleton(motion.skeleton, args.bvh, Skeleton.from_dict(run.skeleton))
-    gaps = parse_gaps(args.gaps, motion.num_frames, args.bvh)
+    notes = []
+    gaps = parse_gaps(args.gaps, motion.num_frames, args.bvh, notes=notes)
     model = load(run)
     res = process_motion(model, motion, gaps, seed=args.seed)
     finite_or_fail(run.run_dir, res["positions"], res["motion"].local_quats, res["motion"].local_pos)
@@ -168,4 +169,4 @@ def infill(args, run: Run) -> InfillResult:
                "refit_frames": int(np.sum(res["frames"]))}
     return InfillResult(samples=[(f"{stem}_filled", [res["motion"]], gen)], summary=summary,
                         extra_files={f"{stem}_filled.npy": functools.partial(_save_npy, arr=pos)},
-                        what="known frames")
+                        what="known frames", notes=notes)
