@@ -190,3 +190,27 @@ def test_initialize_single_process_is_a_noop(monkeypatch):
     monkeypatch.setenv(distributed.ENV_NUM_PROCESSES, "two")
     with pytest.raises(ValueError, match="INBETWEEN_NUM_PROCESSES='two' is not an integer"):
         distributed.initialize()
+
+
+@pytest.mark.slow
+def test_cli_two_processes_match_one_including_resume(tmp_path):
+    """``inbetween train cae --num-processes 2`` (stopped at step 3, resumed to 6) logs the losses of one process."""
+    import csv
+
+    def train(run_dir, steps, procs):
+        argv = [sys.executable, "-m", "inbetween_jax.cli", "train", "cae", "--preset", "tiny", "--source", "embedded",
+                "--run-dir", str(run_dir), "--no-progress", "--num-processes", str(procs), f"train.num_steps={steps}",
+                "train.log_every=1", "train.ckpt_every=3"]
+        res = subprocess.run(argv, capture_output=True, text=True, timeout=600, cwd=tmp_path)
+        assert res.returncode == 0, res.stderr[-2000:]
+
+    def losses(run_dir):
+        with open(run_dir / "metrics.csv") as f:
+            return [(int(r["step"]), float(r["loss"]), float(r["hole_l1"])) for r in csv.DictReader(f)]
+
+    train(tmp_path / "one", 6, 1)
+    train(tmp_path / "two", 3, 2)
+    train(tmp_path / "two", 6, 2)
+    one, two = losses(tmp_path / "one"), losses(tmp_path / "two")
+    assert [s for s, _, _ in one] == [s for s, _, _ in two] == list(range(1, 7))
+    np.testing.assert_allclose(np.array(two)[:, 1:], np.array(one)[:, 1:], rtol=1e-6, atol=1e-6)
