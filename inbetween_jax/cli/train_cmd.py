@@ -20,7 +20,8 @@ Re-running the same command resumes from the run folder's latest checkpoint."""
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("train", help="train or resume a model run", description=__doc__.split("\n\n")[0],
+    p = sub.add_parser("train", help="train or resume a model run",
+                       description="Train (or resume) a registered model into a run folder (run.json + checkpoints/).",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter, add_help=False)
     p.add_argument("-h", "--help", action="store_true", help="show this help (with MODEL: its config keys)")
     p.add_argument("model", nargs="?", metavar="MODEL", help=" | ".join(MODELS))
