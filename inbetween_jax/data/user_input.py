@@ -14,7 +14,8 @@ import numpy as np
 from inbetween_jax.errors import UserError
 
 __all__ = ["split_spec", "read_motion", "read_keyframe", "pick_frame", "check_skeleton", "same_skeleton",
-           "check_unit_quats", "read_json", "finite_or_fail", "merge_gaps", "parse_gaps"]
+           "check_unit_quats", "read_json", "finite_or_fail", "merge_gaps", "parse_gaps",
+           "resampled_gaps"]
 
 
 def split_spec(spec: str, option: str) -> tuple:
@@ -162,6 +163,20 @@ def parse_gaps(text: str, num_frames=None, path: str = "", notes=None) -> list:
     if message and notes is not None:
         notes.append(f"--gaps {text}: {message}")
     return gaps
+
+
+def resampled_gaps(gaps, ratio: float, num_frames: int, text: str, path: str) -> list:
+    """Gaps in a file's frames -> gaps in its resampled frames (``ratio`` = new fps / file fps): each end
+    rounded to the nearest resampled frame, at least one frame per gap, merged again where they now touch."""
+    out = []
+    for a, b in gaps:
+        lo = min(int(round(a * ratio)), num_frames - 1)
+        out.append((lo, min(max(int(round(b * ratio)), lo + 1), num_frames)))
+    out, _ = merge_gaps(out)
+    if out == [(0, num_frames)]:
+        raise UserError(f"--gaps {text!r}: after resampling the gaps cover all {num_frames} frames of {path}; "
+                        "nothing is left to fill from")
+    return out
 
 
 def read_keyframe(spec: str, option: str, default: int, cache: dict) -> tuple:

@@ -145,17 +145,27 @@ def _save_npy(path, arr) -> None:
 def infill(args, run: Run) -> InfillResult:
     """Fill ``args.gaps`` of ``args.bvh`` with the run's model (``args.seed``; ``args.samples`` is not used:
     the CAE is deterministic).  One sample ``<stem>_filled`` (rotations refitted on the gap frames, swing
-    only) plus ``<stem>_filled.npy``: (T, J, 3) predicted global joint positions.
+    only) plus ``<stem>_filled.npy``: (T, J, 3) predicted global joint positions of the checkpoint's joints.
+    A file at another frame rate is resampled to the checkpoint's (gaps count the file's frames) and a rig
+    with more joints is matched by name (:mod:`inbetween_jax.data.retarget`); the output is at the
+    checkpoint's rate on the file's full skeleton.
 
     Raises:
-        UserError: unreadable BVH, another skeleton, malformed or out-of-range gaps, non-finite output.
+        UserError: unreadable BVH, a skeleton lacking checkpoint joints, malformed or out-of-range gaps,
+            non-finite output.
     """
-    from inbetween_jax.data.user_input import check_skeleton, finite_or_fail, parse_gaps, read_motion
+    from inbetween_jax.data.retarget import expand, prepare
+    from inbetween_jax.data.user_input import finite_or_fail, parse_gaps, read_motion, resampled_gaps
     parse_gaps(args.gaps)                                             # syntax first
-    motion = read_motion(args.bvh)
-    check_skeleton(motion.skeleton, args.bvh, Skeleton.from_dict(run.skeleton))
+    user = read_motion(args.bvh)
+    prep = prepare(user, args.bvh, Skeleton.from_dict(run.skeleton), run.fps)
     notes = []
-    gaps = parse_gaps(args.gaps, motion.num_frames, args.bvh, notes=notes)
+    gaps = parse_gaps(args.gaps, user.num_frames, args.bvh, notes=notes)
+    motion = prep.motion
+    if prep.ratio != 1.0:
+        gaps = resampled_gaps(gaps, prep.ratio, motion.num_frames, args.gaps, args.bvh)
+    if prep.note:
+        notes.append(prep.note)
     model = load(run)
     res = process_motion(model, motion, gaps, seed=args.seed)
     finite_or_fail(run.run_dir, res["positions"], res["motion"].local_quats, res["motion"].local_pos)
@@ -164,9 +174,10 @@ def infill(args, run: Run) -> InfillResult:
     gen = np.zeros(motion.num_frames, bool)
     for a, b in gaps:
         gen[a:b] = True
+    out = res["motion"] if prep.match is None else expand(res["motion"], prep.full, prep.match, ~gen)
     summary = {"input": args.bvh, "gaps": gaps, "frames": motion.num_frames, "step": model.step,
                "error_cm_mean": res["error_cm"][0], "fk_gap_cm": res["fk_gap_cm"],
                "refit_frames": int(np.sum(res["frames"]))}
-    return InfillResult(samples=[(f"{stem}_filled", [res["motion"]], gen)], summary=summary,
+    return InfillResult(samples=[(f"{stem}_filled", [out], gen)], summary=summary,
                         extra_files={f"{stem}_filled.npy": functools.partial(_save_npy, arr=pos)},
                         what="known frames", notes=notes)

@@ -188,13 +188,17 @@ def infill(args, run):
     ``args.start`` to ``args.end`` (``FILE.bvh[:FRAME]``) on the start file's skeleton.
 
     Returns an :class:`~inbetween_jax.models.spec.InfillResult` with one Motion per sample (``sample_00`` ...):
-    frames + 2 frames, the start keyframe, the generated frames and the end keyframe.
+    frames + 2 frames, the start keyframe, the generated frames and the end keyframe.  Keyframe files at another
+    frame rate are resampled to the checkpoint's (FRAME counts the file's frames, rounded to the nearest
+    resampled one; ``--frames`` counts the checkpoint's) and larger rigs matched by name
+    (:mod:`inbetween_jax.data.retarget`); the samples are at the checkpoint's rate on the start file's rig.
     Raises:
         UserError: one line naming the file / option (unreadable BVH, other skeleton, frames out of range, a
             diverged checkpoint).
     """
     from inbetween_jax.data import lafan1
     from inbetween_jax.data.datasets import GENERIC_CONTACT_VELFACTOR
+    from inbetween_jax.data.retarget import expand, prepare, to_frame
     from inbetween_jax.data.user_input import check_skeleton, finite_or_fail, read_keyframe, same_skeleton
     from inbetween_jax.errors import UserError
     from inbetween_jax.models.spec import InfillResult, sample_names
@@ -202,9 +206,15 @@ def infill(args, run):
     cache = {}
     sp, sm, sf = read_keyframe(args.start, "--start", 0, cache)
     ep, em, ef = read_keyframe(args.end, "--end", -1, cache)
+    if trained.skeleton is None:
+        check_skeleton(sm.skeleton, sp, None, trained.extra["num_joints"])
+    ps = prepare(sm, sp, trained.skeleton, run.fps)
+    same_skeleton(em.skeleton, ep, sm.skeleton, sp)
+    pe = ps if ep == sp else prepare(em, ep, trained.skeleton, run.fps)
+    notes = list(dict.fromkeys(p.note for p in (ps, pe) if p.note))
+    keyframes = {"start": f"{sp}:{sf}", "end": f"{ep}:{ef}"}                     # the files' own frame numbers
+    sm, em, sf, ef = ps.motion, pe.motion, to_frame(ps, sf), to_frame(pe, ef)
     skel = sm.skeleton
-    check_skeleton(skel, sp, trained.skeleton, trained.extra["num_joints"])
-    same_skeleton(em.skeleton, ep, skel, sp)
     lo, hi = frame_range(trained.cfg)
     if not lo <= args.frames <= hi:
         raise UserError(f"--frames {args.frames}: this S-CVAE checkpoint generates {lo}..{hi} frames between "
@@ -223,10 +233,16 @@ def infill(args, run):
     t = args.frames + 2
     w = (np.arange(t) / (t - 1))[:, None, None]
     base_pos = (1 - w) * sm.local_pos[sf] + w * em.local_pos[ef]       # joints with position channels: lerp
+    keys = None
+    if ps.match is not None:        # the user's full rig: keyframes at both ends, the rest filled by expand
+        idx = np.r_[sf, np.zeros(t - 2, int), ef]
+        keys = dataclasses.replace(ps.full, local_quats=ps.full.local_quats[idx], local_pos=ps.full.local_pos[idx])
+        keys.local_quats[-1], keys.local_pos[-1] = pe.full.local_quats[ef], pe.full.local_pos[ef]
     samples = []
     for name, q, r in zip(sample_names(args.samples), res["q"], res["r"]):
         pos = base_pos.copy()
         pos[:, 0] = r
-        samples.append((name, [dataclasses.replace(sm, local_quats=q, local_pos=pos)], None))
-    return InfillResult(samples=samples, summary={"start": f"{sp}:{sf}", "end": f"{ep}:{ef}", "frames": args.frames,
-                                                  "samples": args.samples, "step": trained.step})
+        out = dataclasses.replace(sm, local_quats=q, local_pos=pos)
+        samples.append((name, [out if keys is None else expand(out, keys, ps.match)], None))
+    return InfillResult(samples=samples, summary={**keyframes, "frames": args.frames,
+                                                  "samples": args.samples, "step": trained.step}, notes=notes)
