@@ -104,11 +104,15 @@ def run(args) -> int:
     for i, model in enumerate(models):
         run_dir = os.path.join(args.runs, model)
         say(f"section {3 + i}: {model} (runs in {run_dir})")
-        try:
-            out = REGISTRY[model].benchmark(source, args.results, run_dir if os.path.exists(run_dir) else None,
-                                            args.quick)
-        except (OSError, ValueError) as err:   # e.g. a run trained on another skeleton
-            out = {"markdown": f"**{model}**: skipped, {err}", "rows": []}
+        if not os.path.exists(run_dir):
+            out = {"markdown": f"**{model}**: skipped, no run in `{run_dir}` (train one with "
+                               f"`inbetween train {model}`, or point `--runs` at a folder holding `{model}/`).",
+                   "rows": []}
+        else:
+            try:
+                out = REGISTRY[model].benchmark(source, args.results, run_dir, args.quick)
+            except (OSError, ValueError) as err:   # e.g. a run trained on another skeleton
+                out = {"markdown": f"**{model}**: skipped, {err}", "rows": []}
         rows += out.get("rows", [])
         results["models"][model] = {k: v for k, v in out.items() if k not in ("markdown", "rows")}
         sections.append(out.get("markdown", ""))
