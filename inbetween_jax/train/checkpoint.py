@@ -37,6 +37,7 @@ import gc
 import json
 import logging
 import os
+import shutil
 from typing import Any, Iterator
 
 import jax
@@ -155,6 +156,15 @@ def _from_restored(restored: Any, target: Any) -> Any:
     return restored
 
 
+def _remove_unfinished(directory: str) -> None:
+    """Delete ``*.orbax-checkpoint-tmp*`` folders left by a killed save (primary process only), synchronously."""
+    if jax.process_index() != 0 or not os.path.isdir(directory):
+        return
+    for name in os.listdir(directory):
+        if ".orbax-checkpoint-tmp" in name:
+            shutil.rmtree(os.path.join(directory, name), ignore_errors=True)
+
+
 class Checkpointer:
     """Keeps the last ``max_to_keep`` checkpoints of a run under ``directory``.
 
@@ -171,8 +181,9 @@ class Checkpointer:
             raise ValueError(f"save_every must be >= 1, got {save_every}")
         self.directory = os.path.abspath(os.path.expanduser(os.fspath(directory)))
         self.save_every = int(save_every)
+        _remove_unfinished(self.directory)     # orbax's own clean-up runs in a thread that can outlive close()
         options = ocp.CheckpointManagerOptions(
-            max_to_keep=max_to_keep, create=True, cleanup_tmp_directories=True,
+            max_to_keep=max_to_keep, create=True, cleanup_tmp_directories=False,
             enable_async_checkpointing=async_save)
         with _quiet():
             self._manager = ocp.CheckpointManager(self.directory, options=options, item_names=("state", "extra"))
