@@ -75,10 +75,9 @@ def train_model(model: str, preset: str | None = None, overrides: Sequence[str] 
 def save_initial_state(run_dir: str, init_fn: Callable, seed: int) -> None:
     """Checkpoint 0 of a run: the state ``run_training`` would start from (``train.num_steps=0``), without
     compiling a training step (used for untrained runs in tests and for inspecting an initialisation)."""
-    import jax
-
     from inbetween_jax.train.checkpoint import Checkpointer
-    init_key = jax.random.split(jax.random.key(seed), 3)[0]      # as in run_training
+    from inbetween_jax.train.loop import run_keys
+    init_key = run_keys(seed)[0]                                 # the key run_training initialises with
     with Checkpointer(os.path.join(os.path.abspath(run_dir), "checkpoints")) as ckpt:
         if ckpt.latest_step() is None:
             ckpt.save(0, init_fn(init_key), extra_json={"step": 0, "seed": seed}, force=True)

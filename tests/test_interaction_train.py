@@ -36,24 +36,17 @@ def test_tiny_model_overfits_real_pairs():
 
 
 @pytest.mark.slow
-def test_train_entry_point_and_restore(tmp_path):
+def test_make_training_and_infer_round_trip_through_a_run_folder(tmp_path):
+    """The training entry point (2 tiny steps, checkpoint every step) -> run folder -> infer.load restores the
+    last step -> one infill of real BVH inputs: finite, right shape."""
     run_dir = str(tmp_path / "run")
-    train_model("interaction", "tiny", ["train.num_steps=4", "train.ckpt_every=2"], source="embedded",
+    train_model("interaction", "tiny", ["train.num_steps=2", "train.ckpt_every=1"], source="embedded",
                 run_dir=run_dir, progress=False, log=None)
     run = load_run(run_dir)
     trained = infer.load(run)
-    assert trained.step == 4 and trained.cfg.model.hidden == get_config("tiny").model.hidden
+    assert trained.step == 2 and trained.cfg.model.hidden == get_config("tiny").model.hidden
     assert all(p["constructed"] for p in run.data["pairs"])
     assert run.extra["num_joints"] == trained.num_joints == len(run.skeleton["names"])
-
-
-@pytest.mark.slow
-def test_make_training_and_infer_round_trip_through_a_run_folder(tmp_path):
-    """2 tiny steps -> run folder -> infer.load -> one infill of real BVH inputs: finite, right shape."""
-    run_dir = str(tmp_path / "run")
-    train_model("interaction", "tiny", ["train.num_steps=2", "train.ckpt_every=2"], source="embedded",
-                run_dir=run_dir, progress=False, log=None)
-    run = load_run(run_dir)
     a, b = os.path.join(EMBEDDED_DIR, "02_01.bvh"), os.path.join(EMBEDDED_DIR, "02_02.bvh")
     args = argparse.Namespace(a=f"{a}:30", b=f"{b}:30", key_a=f"{a}:70", key_b=f"{b}:70", frames=12, samples=1,
                               seed=0)

@@ -55,8 +55,9 @@ def main(argv=None) -> int:
     try:
         args, extra = build_parser().parse_known_args(argv)
         if extra and getattr(args, "command", None) == "train":     # key=value overrides after options
-            args.overrides = list(args.overrides) + [a for a in extra if "=" in a and not a.startswith("-")]
-            extra = [a for a in extra if not ("=" in a and not a.startswith("-"))]
+            is_override = ["=" in a and not a.startswith("-") for a in extra]
+            args.overrides = list(args.overrides) + [a for a, o in zip(extra, is_override) if o]
+            extra = [a for a, o in zip(extra, is_override) if not o]
         if extra:
             raise ArgError(f"inbetween {args.command or ''}: unrecognized arguments: {' '.join(extra)}".replace("  ", " "))
     except ArgError as e:

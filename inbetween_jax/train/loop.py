@@ -42,7 +42,7 @@ from .logging import MetricLogger, ProgressBar
 from .parallel import make_mesh, make_parallel_step_fn, replicate
 from .step import step_body, strongly_typed
 
-__all__ = ["enable_compilation_cache", "default_cache_dir", "make_step_fn", "run_training", "step_body",
+__all__ = ["enable_compilation_cache", "default_cache_dir", "make_step_fn", "run_keys", "run_training", "step_body",
            "strongly_typed"]
 
 def default_cache_dir() -> str:
@@ -112,6 +112,11 @@ def _check_finite(step: int, metrics: dict) -> None:
             raise FloatingPointError(f"non-finite loss '{name}' at step {step}")
 
 
+def run_keys(seed: int) -> jax.Array:
+    """(3,) keys ``init_key, data_base, train_base`` of a run with ``seed`` (see the module docstring)."""
+    return jax.random.split(jax.random.key(seed), 3)
+
+
 def run_training(init_fn: Callable[[jax.Array], Any],
                  train_step_fn: Callable[[Any, Any, jax.Array], tuple[Any, dict]],
                  batch_fn: Callable[[int, jax.Array], Any],
@@ -151,7 +156,7 @@ def run_training(init_fn: Callable[[jax.Array], Any],
     primary = jax.process_index() == 0
     run_dir = os.path.abspath(os.fspath(run_dir))
     log_every, ckpt_every = max(1, int(log_every)), max(1, int(ckpt_every))
-    init_key, data_base, train_base = jax.random.split(jax.random.key(seed), 3)
+    init_key, data_base, train_base = run_keys(seed)
 
     ckpt = Checkpointer(os.path.join(run_dir, "checkpoints"), max_to_keep=max_to_keep, save_every=ckpt_every)
     logger = bar = None

@@ -28,6 +28,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from inbetween_jax.train.loop import run_keys
+
 __all__ = ["ABLATIONS", "COLUMNS", "DEFAULT_STEPS", "N_PAST", "seed_keys", "stack_batches", "make_vmapped",
            "train_seeds", "row_config", "evaluate_seeds", "markdown", "run"]
 
@@ -44,7 +46,7 @@ DEFAULT_STEPS = {"tiny": 200, "cpu": 2000, "paper": 20000}
 # ----------------------------------------------------------------------------- generic: N seeds, one program
 def seed_keys(seeds) -> tuple:
     """Per-seed ``(init_keys, data_keys, train_keys)``, each a (N,) typed key array, as in run_training."""
-    keys = jnp.stack([jax.random.split(jax.random.key(int(s)), 3) for s in seeds])   # (N, 3)
+    keys = jnp.stack([run_keys(int(s)) for s in seeds])                              # (N, 3)
     return keys[:, 0], keys[:, 1], keys[:, 2]
 
 
