@@ -29,7 +29,7 @@ def add_parser(sub) -> None:
                        description=__doc__.split("\n\n")[0].split(": ", 1)[1], epilog=__doc__.split("\n\n", 1)[1],
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--source", default=None,
-                   help="LaFAN1 or BVH folder, or 'embedded' (default: $LAFAN1_DIR, else the embedded CMU clips)")
+                   help="LaFAN1 or BVH folder, 'embedded' or 'cmu' (default: $LAFAN1_DIR, else the embedded CMU clips)")
     p.add_argument("--results", default="results", help="output folder for bench.md / bench.json (default results)")
     p.add_argument("--runs", default="runs", help="folder holding one run folder per model (default runs)")
     p.add_argument("--models", default=",".join(MODELS), help=f"comma-separated models (default {','.join(MODELS)})")
@@ -60,7 +60,7 @@ def _check(args) -> list:
     for m in models:
         if m not in REGISTRY:
             raise UserError(f"--models: unknown model {m!r} (choose {', '.join(MODELS)})")
-    if args.source not in (None, "embedded") and not os.path.isdir(args.source):
+    if args.source not in (None, "embedded", "cmu") and not os.path.isdir(args.source):
         raise UserError(f"--source {args.source}: no such folder")
     if args.l2p_stats and not os.path.isfile(args.l2p_stats):
         raise UserError(f"--l2p-stats {args.l2p_stats}: no such file")

@@ -27,8 +27,8 @@ def add_parser(sub) -> None:
     p.add_argument("model", nargs="?", metavar="MODEL", help=" | ".join(MODELS))
     p.add_argument("--preset", default=None, help="config preset: paper | cpu | tiny (default cpu)")
     p.add_argument("--source", default=None,
-                   help="training data: a LaFAN1 or BVH folder, or 'embedded' (default: $LAFAN1_DIR, else the "
-                        "embedded CMU clips)")
+                   help="training data: a LaFAN1 or BVH folder, 'embedded', or 'cmu' (more CMU mocap from "
+                        "$INBETWEEN_SHARED_DATA; default: $LAFAN1_DIR, else the embedded CMU clips)")
     p.add_argument("--run-dir", default=None, help="run folder (default runs/MODEL)")
     p.add_argument("--num-processes", type=int, default=1,
                    help="launch N local processes on JAX's distributed runtime (a single-machine check; on a "
@@ -59,7 +59,7 @@ def _check(args) -> None:
     spec = REGISTRY[args.model]
     if args.preset is not None and args.preset not in spec.presets:
         raise UserError(f"unknown preset {args.preset!r} for {args.model} (choose {', '.join(spec.presets)})")
-    if args.source not in (None, "embedded") and not os.path.isdir(args.source):
+    if args.source not in (None, "embedded", "cmu") and not os.path.isdir(args.source):
         raise UserError(f"--source {args.source}: no such folder")
     if args.num_processes < 1:
         raise UserError(f"--num-processes must be >= 1, got {args.num_processes}")

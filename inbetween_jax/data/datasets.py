@@ -5,8 +5,15 @@
 * ``"embedded"`` -- the real CMU mocap shipped in ``inbetween_jax/assets/cmu30`` (30 Hz, 21 joints);
   subjects 13 and 14 are the test split, the rest train.
 * a folder of LaFAN1 files (``<action>_subjectN.bvh``) -- the official LaFAN1 splits and windows.
+* ``"cmu"`` -- the embedded test files; for training the embedded ones plus the larger CMU sets of the shared
+  mocap folder (``$INBETWEEN_SHARED_DATA``, else ``../shared/data``), all on the embedded skeleton and unit
+  (:mod:`inbetween_jax.data.sources`).
 * any other folder of BVH files on one skeleton -- ``<stem>`` sorted, the last 20 % test; loading its
   training split prints one line on stderr naming the train / test counts and the test files.
+
+Splits: ``train``, ``test``, ``benchmark`` (test files, 65-frame windows at offset 40), and for checkpoint
+selection ``val`` (about 10 % of the training files, chosen by a hash of the file name) and ``fit`` (``train``
+minus ``val``); see :func:`~inbetween_jax.data.sources.val_files`.
 
 Frame rate: window lengths, offsets and per-frame thresholds count frames at :data:`WORKING_FPS` (30, the
 LaFAN1 and embedded rate; the ``fps`` argument changes it). Files at any other rate (120 Hz CMU, 50, 24 ...)
@@ -34,7 +41,7 @@ from typing import Optional
 
 import numpy as np
 
-from inbetween_jax.data import lafan1
+from inbetween_jax.data import lafan1, sources
 from inbetween_jax.data.bvh import Motion, read_bvh
 from inbetween_jax.data.features import detect_unit_scale
 from inbetween_jax.data.resample import WORKING_FPS, nominal_fps, resample_motion
@@ -44,6 +51,7 @@ from inbetween_jax.data.windows import MotionWindows, windows_from_motions
 EMBEDDED_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "assets", "cmu30")
 EMBEDDED_TEST_PREFIXES = ("13_", "14_")
 CACHE_VERSION = 2
+SPLITS = ("train", "test", "benchmark", "val", "fit")
 GENERIC_CONTACT_VELFACTOR = 1.0  # squared cm per frame
 
 
@@ -55,18 +63,25 @@ def resolve_source(source: Optional[str] = None) -> str:
 
 
 def is_lafan1(source: str) -> bool:
-    return source != "embedded" and os.path.isdir(source) and any(
+    return source not in sources.NAMED_SOURCES and os.path.isdir(source) and any(
         lafan1._NAME.match(f) for f in os.listdir(source))
 
 
 def split_files(source: str, split: str) -> list:
-    """BVH paths of ``split`` (``train`` / ``test`` / ``benchmark``) for ``source``.
+    """BVH paths of ``split`` (``train`` / ``test`` / ``benchmark`` / ``val`` / ``fit``) for ``source``.
 
     A generic folder's files are sorted by name and the last 20 % (at least one) are the test split; a
-    folder holding a single file uses it for both.
+    folder holding a single file uses it for both.  ``val`` is about 10 % of the ``train`` files (by a hash of
+    their names, :func:`~inbetween_jax.data.sources.val_files`), ``fit`` the rest of ``train``.
     """
-    if split not in ("train", "test", "benchmark"):
-        raise ValueError(f"unknown split {split!r}; choose train, test or benchmark")
+    if split not in SPLITS:
+        raise ValueError(f"unknown split {split!r}; choose {', '.join(SPLITS)}")
+    if split in ("val", "fit"):
+        train = split_files(source, "train")
+        val = sources.val_files(train)
+        return val if split == "val" else [f for f in train if f not in val]
+    if source == sources.CMU:
+        return sources.cmu_split_files(split)
     if source == "embedded" or not is_lafan1(source):
         folder = EMBEDDED_DIR if source == "embedded" else source
         if not os.path.isdir(folder):
@@ -87,7 +102,7 @@ def split_files(source: str, split: str) -> list:
 def split_note(source: str) -> Optional[str]:
     """The line telling which files of a generic BVH folder are train and test (None for LaFAN1 / embedded)."""
     source = resolve_source(source)
-    if source == "embedded" or is_lafan1(source):
+    if source in sources.NAMED_SOURCES or is_lafan1(source):
         return None
     train, test = split_files(source, "train"), split_files(source, "test")
     if train == test:
@@ -99,9 +114,21 @@ def split_note(source: str) -> Optional[str]:
             f"test: {', '.join(names)}")
 
 
+def val_note(source: str, split: str) -> Optional[str]:
+    """The line naming the validation files when ``split`` is ``val`` or ``fit`` (None otherwise)."""
+    if split not in ("val", "fit"):
+        return None
+    train, val = split_files(source, "train"), split_files(source, "val")
+    names = [os.path.basename(f) for f in val]
+    if len(names) > 6:
+        names = names[:5] + ["..."]
+    return (f"data: {resolve_source(source)}: validation split {len(val)} of {len(train)} training files "
+            f"(by a hash of the name), fit on the other {len(train) - len(val)}: {', '.join(names)}")
+
+
 def window_settings(source: str, split: str, fps: float = WORKING_FPS) -> dict:
     """Window length, offset, past frames, root forward axis, contact threshold and frame rate of a split."""
-    spec = lafan1.split_spec(split)
+    spec = lafan1.split_spec("train" if split in ("val", "fit") else split)
     if is_lafan1(source):
         forward, velfactor = lafan1.ROOT_FORWARD_AXIS, lafan1.CONTACT_VELFACTOR
     else:
@@ -123,8 +150,7 @@ def load_motions(source: Optional[str] = None, split: str = "train", fps: float 
     every file) is given.
     """
     source = resolve_source(source)
-    if split == "train":
-        _notice(split_note(source))
+    _notice(split_note(source) if split == "train" else val_note(source, split))
     motions, note = _read_motions(source, split, fps, unit_scale)
     _notice(note)
     return motions
@@ -149,9 +175,8 @@ def load_dataset(source: Optional[str] = None, split: str = "train", window: Opt
         ws["offset"] = int(offset)
     if unit_scale is not None:
         ws["unit_scale"] = _check_scale(unit_scale)
-    if split == "train":
-        _notice(split_note(source))
-    key = _cache_key(files, ws)
+    _notice(split_note(source) if split == "train" else val_note(source, split))
+    key = _cache_key(files, {**ws, "cmu": sources.CMU_VERSION} if source == sources.CMU else ws)
     path = os.path.join(cache_dir(), "windows", f"{split}-{key}.npz")
     if use_cache and os.path.exists(path):
         try:
@@ -174,6 +199,8 @@ def load_dataset(source: Optional[str] = None, split: str = "train", window: Opt
 def _read_motions(source: str, split: str, fps: float, unit_scale: Optional[float]):
     """(motions at ``fps``, the resampling notice or None); one skeleton and one unit per folder."""
     files = split_files(source, split)
+    if source == sources.CMU and split in ("train", "val", "fit"):
+        return sources.read_cmu_train(files, split, fps)
     motions, rates = [], Counter()
     scale0 = None
     for f in _progress(files, f"reading {split} BVH"):
@@ -197,7 +224,7 @@ def _read_motions(source: str, split: str, fps: float, unit_scale: Optional[floa
         motions.append(r)
     note = None
     if rates:
-        folder = "embedded" if source == "embedded" else source
+        folder = source
         if len(rates) == 1 and sum(rates.values()) == len(files):
             what = f"{_fmt_fps(next(iter(rates)))} fps files"
         else:
@@ -275,5 +302,5 @@ def _progress(items, desc):
         return items
 
 
-__all__ = ["Motion", "MotionWindows", "WORKING_FPS", "detect_unit_scale", "load_dataset", "load_motions",
-           "resolve_source", "skeleton_difference", "split_files", "split_note", "window_settings"]
+__all__ = ["Motion", "MotionWindows", "SPLITS", "WORKING_FPS", "detect_unit_scale", "load_dataset", "load_motions",
+           "resolve_source", "skeleton_difference", "split_files", "split_note", "val_note", "window_settings"]

@@ -1,0 +1,227 @@
+"""The ``cmu`` source (more real CMU mocap for training, the embedded test files for testing) and the
+validation split of every source.
+
+``cmu``:
+
+* test / benchmark -- exactly the embedded default's test files (``assets/cmu30``, subjects 13 and 14), so
+  ``cmu`` and ``embedded`` are scored on the same windows;
+* train -- the embedded training files plus, from the shared mocap folder
+  (:func:`~inbetween_jax.paths.shared_data_dir`), ``cmu_bvh/*.bvh``, ``cmu_more/daz43/*.bvh`` and both dancers
+  of every ``cmu_pairs`` take, each as a single-person motion.  Trials of CMU subjects 13 and 14 are never
+  trained on, trials already in the embedded set (compared by trial name ``NN_MM``) are dropped, and files whose
+  skeleton lacks a joint of the embedded 21-joint body (the 31-joint ``cmu_bvh`` files, 18_01) are skipped.
+  Every training motion is restricted to the embedded joints (same order; the 43-joint files' extra joints are
+  fingers and eyes, leaves), converted to the embedded unit (the ``cmu_pairs`` files are in 1/128 units; the
+  factor comes from :func:`~inbetween_jax.data.features.detect_unit_scale`, made exact by the leg-length ratio
+  when the file is the same generic body), loses a leading T-pose frame and is resampled to the working rate.
+
+Validation (``val``, for checkpoint selection) is cut from a source's training files: about
+:data:`VAL_FRACTION` of them (at least one), chosen by a SHA-1 hash of the file name, so the choice is
+deterministic and does not depend on the folder's order.  Both dancers of a ``cmu_pairs`` take go to the same
+side.  ``fit`` is the training files minus ``val``; ``train`` keeps meaning all training files.
+"""
+from __future__ import annotations
+
+import functools
+import hashlib
+import os
+import re
+from collections import Counter, OrderedDict
+
+import numpy as np
+
+CMU = "cmu"
+NAMED_SOURCES = ("embedded", CMU)
+CMU_VERSION = 1             # part of the window-cache key: bump when the conversion below changes
+CMU_FOLDERS = ("cmu_bvh", os.path.join("cmu_more", "daz43"), "cmu_pairs")
+HELD_OUT_SUBJECTS = ("13", "14")
+VAL_FRACTION = 0.1
+TPOSE_TOL = 0.01            # max |1 - |w|| of the non-root joints' rotations at frame 0 for a T-pose frame
+_TRIAL = re.compile(r"^(\d+)_(\d+)")
+_PAIR = re.compile(r"^(60|61)_(\d+)_scaled$", re.IGNORECASE)
+_JOINT = re.compile(r"^\s*(?:ROOT|JOINT)\s+(\S+)")
+
+__all__ = ["CMU", "NAMED_SOURCES", "VAL_FRACTION", "trial_name", "cmu_split_files", "cmu_train_plan",
+           "val_files", "reference_skeleton", "to_reference", "read_cmu_train"]
+
+
+def trial_name(path: str):
+    """The CMU trial name ``NN_MM`` of a file (``"07_05"`` for ``07_05.bvh``), or None."""
+    m = _TRIAL.match(os.path.basename(path))
+    return f"{int(m.group(1)):02d}_{int(m.group(2)):02d}" if m else None
+
+
+def _held_out(path: str) -> bool:
+    name = trial_name(path)
+    return name is not None and name.split("_")[0] in HELD_OUT_SUBJECTS
+
+
+@functools.lru_cache(maxsize=None)
+def _header_joints(path: str, mtime_ns: int) -> tuple:
+    names = []
+    with open(path, "r", errors="replace") as fh:
+        for line in fh:
+            if line.strip().upper().startswith("MOTION"):
+                break
+            m = _JOINT.match(line)
+            if m:
+                names.append(m.group(1))
+    return tuple(names)
+
+
+def _on_reference(path: str, ref_names) -> bool:
+    """Whether the file's hierarchy (read up to ``MOTION`` only) holds every embedded joint, root first."""
+    names = _header_joints(path, os.stat(path).st_mtime_ns)
+    return bool(names) and names[0] == ref_names[0] and set(ref_names) <= set(names)
+
+
+def cmu_train_plan() -> tuple:
+    """``(files, dropped)``: the ``cmu`` training files (embedded train first, then each shared folder,
+    sorted) and ``dropped`` = {"subjects 13/14": [...], "duplicates": [...], "other skeleton": [...]}.
+
+    Raises UserError (one line) when the shared folder is missing."""
+    from inbetween_jax.data.datasets import split_files
+    from inbetween_jax.paths import shared_data_dir
+    shared = shared_data_dir(required=True)
+    files = split_files("embedded", "train")
+    seen = {trial_name(f) for f in split_files("embedded", "train") + split_files("embedded", "test")}
+    ref_names = reference_skeleton().names
+    dropped = {"subjects 13/14": [], "duplicates": [], "other skeleton": []}
+    for sub in CMU_FOLDERS:
+        folder = os.path.join(shared, sub)
+        if not os.path.isdir(folder):
+            from inbetween_jax.errors import UserError
+            raise UserError(f"{folder}: missing; the cmu source reads {', '.join(CMU_FOLDERS)} there")
+        for f in sorted(os.path.join(folder, n) for n in os.listdir(folder) if n.lower().endswith(".bvh")):
+            name = trial_name(f)
+            if _held_out(f):
+                dropped["subjects 13/14"].append(f)
+            elif name in seen:
+                dropped["duplicates"].append(f)
+            elif not _on_reference(f, ref_names):
+                dropped["other skeleton"].append(f)
+            else:
+                files.append(f)
+                seen.add(name)
+    return files, dropped
+
+
+def cmu_split_files(split: str) -> list:
+    """BVH paths of ``split`` (train / test / benchmark) of the ``cmu`` source (see the module docstring)."""
+    from inbetween_jax.data.datasets import split_files
+    if split == "train":
+        return cmu_train_plan()[0]
+    return split_files("embedded", split)
+
+
+def _stem(path: str) -> str:
+    return os.path.splitext(os.path.basename(path))[0]
+
+
+def _val_group(path: str) -> str:
+    """What the validation hash is taken of: the file name, or ``salsa_NN`` for both dancers of a take."""
+    stem = _stem(path)
+    m = _PAIR.match(stem)
+    return f"salsa_{int(m.group(2)):02d}" if m else stem.lower()
+
+
+def val_files(train: list, fraction: float = VAL_FRACTION) -> list:
+    """The validation files among ``train`` (in ``train``'s order): whole groups (:func:`_val_group`) taken in
+    the order of the SHA-1 of their name until at least ``round(fraction * len(train))`` files (>= 1)."""
+    groups = OrderedDict()
+    for f in train:
+        groups.setdefault(_val_group(f), []).append(f)
+    if len(groups) < 2:
+        raise ValueError(f"a validation split needs training files of at least two trials, got "
+                         f"{len(train)} file{'s' if len(train) != 1 else ''} ({', '.join(map(os.path.basename, train))})")
+    want = max(1, int(round(fraction * len(train))))
+    chosen = set()
+    for g in sorted(groups, key=lambda g: hashlib.sha1(g.encode()).hexdigest()):
+        if len(chosen) >= want:
+            break
+        chosen.update(groups[g])
+    return [f for f in train if f in chosen]
+
+
+@functools.lru_cache(maxsize=1)
+def reference_skeleton():
+    """The embedded data's 21-joint skeleton (every ``cmu`` training motion is put on it)."""
+    from inbetween_jax.data.bvh import read_bvh
+    from inbetween_jax.data.datasets import split_files
+    return read_bvh(split_files("embedded", "train")[0]).skeleton
+
+
+def _unit_factor(skel, ref) -> float:
+    """Reference units per file unit: the ratio of detected unit scales, or the exact leg-length ratio when
+    it agrees with that ratio within 5 % (the same generic body at another scale)."""
+    from inbetween_jax.data.features import detect_unit_scale, leg_length
+    factor = detect_unit_scale(skel) / detect_unit_scale(ref)
+    exact = leg_length(ref) / leg_length(skel)
+    return exact if abs(exact / factor - 1.0) <= 0.05 else factor
+
+
+def to_reference(motion, ref, fps: float, drop_tpose: bool = True):
+    """``motion`` on ``ref``'s joints (same order), in ``ref``'s unit, without a leading T-pose frame, at
+    ``fps``: a Motion (T', J_ref) whose skeleton is ``ref`` itself.
+
+    Returns ``(motion, factor)`` with ``factor`` the reference units per file unit.  Raises ValueError naming
+    the file when its bone offsets, converted, differ from ``ref``'s by more than 2 % of the leg length.
+    """
+    from inbetween_jax.data.bvh import Motion
+    from inbetween_jax.data.features import leg_length
+    from inbetween_jax.data.resample import resample_motion
+    from inbetween_jax.data.retarget import match_joints, restrict
+    if not motion.skeleton.same_topology(ref):
+        motion = restrict(motion, match_joints(motion.skeleton, ref, motion.source), ref)
+    factor = _unit_factor(motion.skeleton, ref)
+    offsets = np.asarray(motion.skeleton.offsets, np.float64) * factor
+    err = float(np.abs(offsets[1:] - np.asarray(ref.offsets)[1:]).max())
+    if err > 0.02 * leg_length(ref):
+        raise ValueError(f"{motion.source}: its bone offsets differ from the embedded skeleton's by up to "
+                         f"{err:.3g} units after scaling by {factor:g}; not the same body")
+    q, p = np.asarray(motion.local_quats, np.float64), np.asarray(motion.local_pos, np.float64) * factor
+    if drop_tpose and len(q) > 1 and float(np.abs(1.0 - np.abs(q[0, 1:, 0])).max()) < TPOSE_TOL:
+        q, p = q[1:], p[1:]
+    p[:, 1:] = np.asarray(ref.offsets)[None, 1:]            # exactly the reference bones (differ by < 2 %)
+    out = resample_motion(Motion(ref, q, p, motion.frame_time, motion.source), fps)
+    assert out.skeleton is ref and out.local_quats.shape[1] == ref.num_joints
+    return out, factor
+
+
+def _folder_label(path: str, shared: str) -> str:
+    from inbetween_jax.data.datasets import EMBEDDED_DIR
+    if os.path.dirname(os.path.abspath(path)) == os.path.abspath(EMBEDDED_DIR):
+        return "embedded"
+    return os.path.relpath(os.path.dirname(os.path.abspath(path)), shared)
+
+
+def read_cmu_train(files: list, split: str, fps: float) -> tuple:
+    """(motions on the embedded skeleton at ``fps``, the line saying what they are) for the ``cmu`` training
+    files ``files`` (all of ``train``, or its ``val`` / ``fit`` part)."""
+    from inbetween_jax.data.bvh import read_bvh
+    from inbetween_jax.data.datasets import _progress
+    from inbetween_jax.paths import shared_data_dir
+    shared, ref = shared_data_dir(required=True), reference_skeleton()
+    motions, frames, count, scaled = [], Counter(), Counter(), Counter()
+    for f in _progress(files, f"reading cmu {split} BVH"):
+        m, factor = to_reference(read_bvh(f), ref, fps)
+        label = _folder_label(f, shared)
+        frames[label] += m.num_frames
+        count[label] += 1
+        if abs(factor - 1.0) > 0.05:
+            scaled[label] = factor
+        motions.append(m)
+    parts = []
+    for label in count:
+        unit = f", x{scaled[label]:.4g} to the embedded unit" if label in scaled else ""
+        parts.append(f"{label} {count[label]} files {frames[label] / fps / 60:.1f} min{unit}")
+    what = "training on" if split == "train" else f"{split} split:"
+    note = (f"data: cmu: {what} {len(files)} files, {sum(frames.values()) / fps / 60:.1f} min at {fps:g} fps "
+            f"({'; '.join(parts)})")
+    if split == "train":
+        dropped = cmu_train_plan()[1]
+        other = [os.path.basename(f) for f in dropped["other skeleton"]]
+        note += (f"\ndata: cmu: left out {len(dropped['subjects 13/14'])} subject 13/14 trials (test subjects), "
+                 f"{len(dropped['duplicates'])} duplicates of embedded trials, {len(other)} files on another "
+                 f"skeleton ({', '.join(other) or 'none'})")
+    return motions, note
