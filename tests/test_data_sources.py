@@ -226,3 +226,113 @@ def test_gaps_overlapping_or_touching_are_merged():
     assert parse_gaps("1:5,2:3") == [(1, 5)]                        # notes are optional
     with pytest.raises(UserError, match="cover all 100 frames"):
         parse_gaps("0:60,50:100", 100, "a.bvh")
+
+
+# ---- the cmu source and the validation split -------------------------------------------------------------------
+
+def _trials(files):
+    from inbetween_jax.data.sources import trial_name
+    return [trial_name(f) for f in files]
+
+
+@pytest.fixture
+def cmu_env(monkeypatch):
+    monkeypatch.setenv("INBETWEEN_SHARED_DATA", SHARED)
+
+
+@requires_cmu
+def test_cmu_splits(cmu_env):
+    train, val, fit = (split_files("cmu", s) for s in ("train", "val", "fit"))
+    test = split_files("cmu", "test")
+    assert test == split_files("embedded", "test") and split_files("cmu", "benchmark") == test
+    assert all(os.path.basename(f).startswith(("13_", "14_")) for f in test)
+    names = _trials(train)
+    assert not [n for n in names if n.startswith(("13_", "14_"))] and not set(test) & set(train)
+    assert len(set(names)) == len(names)                       # no trial twice (embedded copies dropped)
+    assert set(split_files("embedded", "train")) <= set(train)
+    folders = {os.path.basename(os.path.dirname(f)) for f in train}
+    assert folders == {"cmu30", "daz43", "cmu_pairs"}          # cmu_bvh: all embedded, held out or other rigs
+    assert sum("_scaled" in f for f in train) == 24
+    assert not set(val) & set(fit) and sorted(val + fit) == sorted(train)
+    assert 0.08 * len(train) <= len(val) <= 0.15 * len(train)
+    takes = {os.path.basename(f)[3:] for f in val if "_scaled" in f}
+    for t in takes:                                             # both dancers of a take on one side
+        assert any(f.endswith("60_" + t) for f in val) and any(f.endswith("61_" + t) for f in val)
+
+
+@requires_cmu
+def test_val_split_of_every_source_kind(tmp_path, cmu_env):
+    from inbetween_jax.data.sources import val_files
+    emb = split_files("embedded", "train")
+    val = split_files("embedded", "val")
+    assert 1 <= len(val) <= 0.15 * len(emb) + 1 and set(val) <= set(emb)
+    assert set(val_files(emb[::-1])) == set(val)               # by name, not by listing order
+    assert split_files("embedded", "train") == emb              # train unchanged
+    folder = folder_of(tmp_path, "cmu_more/daz43/35_01.bvh", "cmu_more/daz43/35_02.bvh",
+                       "cmu_more/daz43/35_03.bvh", "cmu_more/daz43/35_04.bvh", "cmu_more/daz43/35_05.bvh")
+    g_train, g_val, g_fit = (split_files(folder, s) for s in ("train", "val", "fit"))
+    assert len(g_train) == 4 and len(g_val) == 1 and sorted(g_val + g_fit) == g_train
+    one = tmp_path / "one"
+    one.mkdir()
+    os.symlink(shared(DAZ30), one / "a.bvh")
+    with pytest.raises(ValueError, match="at least two trials"):
+        split_files(str(one), "val")
+    if HAS_LAFAN1:
+        l_val, l_train = split_files(LAFAN1_DIR, "val"), split_files(LAFAN1_DIR, "train")
+        assert l_val and set(l_val) <= set(l_train) and not any("subject5" in f for f in l_val)
+
+
+@requires_cmu
+def test_missing_shared_folder_is_one_line(tmp_path, monkeypatch):
+    monkeypatch.setenv("INBETWEEN_SHARED_DATA", str(tmp_path / "nowhere"))
+    with pytest.raises(UserError, match="set INBETWEEN_SHARED_DATA") as err:
+        split_files("cmu", "train")
+    assert "\n" not in str(err.value)
+    assert split_files("cmu", "test") == split_files("embedded", "test")   # the test split needs no shared data
+
+
+@requires_cmu
+def test_cmu_motions_share_the_embedded_skeleton_and_unit():
+    from inbetween_jax.data.sources import reference_skeleton, to_reference
+    ref = reference_skeleton()
+    files = [os.path.join(EMBEDDED_DIR, "02_01.bvh"), shared("cmu_more/daz43/35_01.bvh"), shared(PAIR),
+             shared(WALK), shared("cmu_more/daz43/16_12.bvh")]
+    out = {}
+    for f in files:
+        raw = read_bvh(f)
+        m, factor = to_reference(raw, ref, 30.0)
+        assert m.skeleton is ref and m.local_quats.shape[1:] == (21, 4) and m.fps == pytest.approx(30.0, rel=1e-4)
+        np.testing.assert_allclose(m.local_pos[:, 1:], np.broadcast_to(ref.offsets[1:], m.local_pos[:, 1:].shape))
+        out[os.path.basename(f)] = (m, factor, raw)
+    assert out["60_10_scaled.bvh"][1] == pytest.approx(128.0, rel=1e-4)          # the 1/128 salsa files
+    assert all(out[k][1] == 1.0 for k in out if k != "60_10_scaled.bvh")
+    hips = {k: m.local_pos[0, 0, 1] for k, (m, _, _) in out.items()}
+    assert max(hips.values()) / min(hips.values()) < 1.2, hips                      # one unit everywhere
+    assert abs(hips["60_10_scaled.bvh"] / hips["07_05.bvh"] - 1) < 0.25
+    # a leading T-pose frame is dropped (35_01 starts with one, 16_12 does not; the salsa takes neither)
+    assert out["35_01.bvh"][0].num_frames == out["35_01.bvh"][2].num_frames - 1
+    assert out["16_12.bvh"][0].num_frames == out["16_12.bvh"][2].num_frames
+    assert out["60_10_scaled.bvh"][0].num_frames == (out["60_10_scaled.bvh"][2].num_frames - 1) // 4 + 1
+    raw = out["35_01.bvh"][2]
+    idx = [raw.skeleton.names.index(n) for n in ref.names]                      # the body joints, in order
+    np.testing.assert_allclose(out["35_01.bvh"][0].local_quats, raw.local_quats[1:, idx])
+
+
+@requires_cmu
+@pytest.mark.slow
+def test_cmu_windows_and_cache(cmu_env, tmp_path, monkeypatch, capfd):
+    """The whole cmu training set (~150 files, about a minute cold): one skeleton and unit, more windows than
+    the embedded set, fit + val = train window for window, and the cache gives the same arrays."""
+    monkeypatch.setenv("INBETWEEN_JAX_CACHE", str(tmp_path / "cache"))
+    from inbetween_jax.data.sources import reference_skeleton
+    train = load_dataset("cmu", "train")
+    err = capfd.readouterr().err
+    assert "data: cmu: training on 146 files" in err and "3 files on another skeleton" in err
+    assert train.skeleton.names == reference_skeleton().names and train.unit_scale == 1.0
+    assert len(train) > 3 * len(load_dataset("embedded", "train"))
+    val, fit = load_dataset("cmu", "val"), load_dataset("cmu", "fit")
+    assert len(val) + len(fit) == len(train) and not set(val.seq_names) & set(fit.seq_names)
+    again = load_dataset("cmu", "train")
+    assert "training on 146 files" in capfd.readouterr().err
+    np.testing.assert_array_equal(again.local_quats, train.local_quats)
+    assert len(load_dataset("cmu", "test")) == len(load_dataset("embedded", "test"))
