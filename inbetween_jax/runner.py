@@ -50,7 +50,7 @@ def train_model(model: str, preset: str | None = None, overrides: Sequence[str] 
     cfg = build_config(model, preset, overrides)
     run_dir = run_dir or default_run_dir(model)
     src = resolve_source(source)
-    data = spec.load_data(cfg, src, "train")
+    data = spec.load_data(cfg, src, cfg.train.split)
     training = spec.make_training(cfg, data)
     meta = dict(training.meta)
     meta["data"] = {"source": src, **meta.get("data", {})}
@@ -63,9 +63,14 @@ def train_model(model: str, preset: str | None = None, overrides: Sequence[str] 
         return run_dir, []
     t0 = time.time()
     _, logged = run_training(training.init_fn, training.step_fn, training.batch_fn, cfg, run_dir,
-                             training.num_steps, tc.log_every, tc.ckpt_every, tc.seed, progress=progress, mesh=mesh)
+                             training.num_steps, tc.log_every, tc.ckpt_every, tc.seed, progress=progress, mesh=mesh,
+                             max_to_keep=tc.keep_checkpoints or None)
     wall = time.time() - t0
     record_training(run_dir, training.num_steps, wall)
+    bench = spec.module("bench")
+    if tc.split == "fit" and hasattr(bench, "val_score"):
+        from inbetween_jax.train.select import select_checkpoint
+        select_checkpoint(run_dir, src, lambda r: bench.val_score(r, src), "val L2P", log=log)
     if log and logged:
         last = {k: round(v, 5) if isinstance(v, float) else v for k, v in logged[-1].items()}
         log(f"done in {wall:.0f} s; last logged: {last}")

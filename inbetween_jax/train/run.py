@@ -154,7 +154,8 @@ def _checkpoint_steps(ckpt_dir: str) -> list[int]:
 
 
 def load_run(run_dir: str, step: int | None = None, need_checkpoint: bool = True) -> Run:
-    """Read a run folder; ``step`` defaults to its latest checkpoint.
+    """Read a run folder; ``step`` defaults to the step chosen on the validation split (``selection.json``,
+    :mod:`inbetween_jax.train.select`), else the latest checkpoint.
 
     Raises:
         RunError: one line naming the folder: missing, not a run folder, unreadable ``run.json``, no checkpoint
@@ -167,7 +168,9 @@ def load_run(run_dir: str, step: int | None = None, need_checkpoint: bool = True
     meta = _read(os.path.join(run_dir, RUN_FILE), run_dir)
     steps = _checkpoint_steps(os.path.join(run_dir, "checkpoints"))
     if step is None:
-        step = steps[-1] if steps else None
+        from .select import selected_step
+        chosen = selected_step(run_dir)
+        step = chosen if chosen in steps else (steps[-1] if steps else None)
     elif step not in steps:
         raise RunError(f"{run_dir}: no checkpoint at step {step} (found {steps or 'none'})")
     if step is None and need_checkpoint:

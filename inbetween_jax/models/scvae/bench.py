@@ -121,3 +121,25 @@ def error_over_time_plot(windows, n_trans: int, samples: dict, label: str, path:
     return plot_error_over_time(np.arange(1, n_trans + 1), err.mean((0, 1)), err.min(0).mean(0),
                                 err.max(0).mean(0), path, label, baseline={"Slerp": slerp},
                                 ylabel="mean joint position error (cm)", title=title)
+
+
+VAL_LENGTHS = (10, 30, 50)
+VAL_SAMPLES = 2
+
+
+def val_score(run, source: str) -> float:
+    """Checkpoint-selection score (lower is better): mean L2P over transitions of 10 / 30 / 50 frames on the
+    validation split of ``source`` (65-frame windows at offset 20, 10 past frames; statistics of the
+    validation windows themselves), ``VAL_SAMPLES`` samples each.  Never uses test windows."""
+    from inbetween_jax.data import l2p_stats, load_dataset
+    from inbetween_jax.evaluation import transition_metrics
+    from inbetween_jax.models.scvae import infer
+    trained = infer.load(run)
+    val = load_dataset(source, "val", window=N_PAST + max(VAL_LENGTHS) + 5, offset=20)
+    x_mean, x_std = l2p_stats(val.global_pose()[1])
+    lengths = [n for n in VAL_LENGTHS if n <= trained.cfg.data.trans_max]
+    errs = []
+    for n in lengths:
+        s = infer.sample_transitions(trained.cfg.model, trained.state, val, N_PAST, n, VAL_SAMPLES)
+        errs.append(transition_metrics(val, N_PAST, n, s["q"], s["r"], x_mean, x_std)["L2P"])
+    return float(np.mean(errs))

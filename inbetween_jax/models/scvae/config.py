@@ -13,8 +13,8 @@ import dataclasses
 
 from inbetween_jax.train.config import TrainConfig
 
-PRESETS = ("paper", "cpu", "tiny")
-DEFAULT_PRESET = "cpu"
+PRESETS = ("improved", "cpu", "paper", "tiny")
+DEFAULT_PRESET = "improved"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -45,6 +45,11 @@ class ModelConfig:
     stitch_loss: bool = True       # False: "w/o SL"
     # speed only (same losses): the largest weight gradients as one matmul after the scan
     deferred_wgrad: bool = True
+    # beyond the paper (the ``improved`` preset; all off = the paper's model)
+    residual: bool = False         # decoder predicts offsets from the Slerp / lerp path (zero-initialised head)
+    decoder_target: bool = False   # the decoder also sees the offset-to-target embedding (with tta added)
+    start_velocity: bool = False   # the start keyframe carries the past frame's root velocity (official protocol)
+    search: int = 1                # test-time latent pair search: candidates per sample (paper: "N pairs")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -55,6 +60,10 @@ class DataConfig:
     trans_start: int = 5
     trans_max: int = 48            # 50-frame windows with one past frame allow at most 48 transition frames
     epochs_per_increment: float = 2.0   # +1 frame every 2 epochs
+    ramp_steps: int = 0            # > 0: the same ramp linearly over this many steps (not per epoch)
+    length_mode: str = "progressive"    # "mixed": each batch draws its length uniformly up to the current one
+    bucket: int = 0                # > 0: scan length rounded up to a multiple of this (cheaper short stages)
+    window: int = 0                # training window frames (0: the source's default, 50 at offset 20)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,7 +77,14 @@ class LossConfig:
     alpha_d: float = 0.1
     alpha_g: float = 0.1
     phase: float = 1.0             # phase-network regression loss (its own parameters only)
+    kl_reduce: str = "sum"         # "sum" over latent dimensions (paper) or "mean"
+    free_bits: float = 0.0         # nats per latent dimension not penalised (0: plain KL)
 
+
+# the CPU-sized model of the ``cpu`` (paper's method) and ``improved`` presets, and their shared budget
+CPU_WIDTHS = dict(enc_hidden=128, enc_out=64, lstm_hidden=128, head_hidden=128, dec_lstm_hidden=128,
+                  expert_hidden=(128, 64), phase_hidden=64, disc_hidden=(64, 32))
+CPU_STEPS = 3000
 
 _TRAIN = TrainConfig(num_steps=20000, batch_size=32, lr=1e-4, b1=0.5, b2=0.9, weight_decay=1e-5, grad_clip=1.0,
                      log_every=50, ckpt_every=500, seed=0)
@@ -96,8 +112,18 @@ def get_config(preset: str = DEFAULT_PRESET) -> Config:
                                       phase_hidden=16, disc_hidden=(16, 16), buffer_k=2),
             data=dataclasses.replace(cfg.data, trans_start=10, trans_max=10),
             train=dataclasses.replace(cfg.train, batch_size=4, log_every=5, ckpt_every=5, lr=1e-3))
-    if preset == "cpu":
-        return dataclasses.replace(cfg, model=dataclasses.replace(
-            cfg.model, enc_hidden=256, enc_out=128, lstm_hidden=384, head_hidden=384,
-            dec_lstm_hidden=384, expert_hidden=(256, 128), phase_hidden=128, disc_hidden=(256, 128)))
+    if preset in ("cpu", "improved"):
+        cfg = dataclasses.replace(
+            cfg, model=dataclasses.replace(cfg.model, **CPU_WIDTHS),
+            data=dataclasses.replace(cfg.data, trans_max=50, window=60, ramp_steps=CPU_STEPS // 3, bucket=17),
+            train=dataclasses.replace(cfg.train, num_steps=CPU_STEPS, lr=5e-4, b1=0.9, b2=0.99,
+                                      lr_schedule="cosine", lr_final=0.04, warmup_steps=100, ckpt_every=250,
+                                      log_every=25, split="fit", keep_checkpoints=0))
+        if preset == "cpu":
+            return cfg
+        return dataclasses.replace(
+            cfg, model=dataclasses.replace(cfg.model, residual=True, decoder_target=True, search=8,
+                                           discriminators=False),
+            data=dataclasses.replace(cfg.data, length_mode="mixed"),
+            loss=dataclasses.replace(cfg.loss, kl_reduce="mean", alpha_fk=2.0))
     raise ValueError(f"unknown S-CVAE preset {preset!r}; choose {', '.join(PRESETS)}")

@@ -128,10 +128,13 @@ def lstm_packed(params: dict, carry, x, tap=None):
     return (h, c), h
 
 
-def init_moe(f: ParamFactory, sizes: Sequence[int], num_experts: int) -> list:
-    """Experts as stacked layers: W (E, d_in, d_out), b (E, d_out)."""
-    return [{"w": f.uniform((num_experts, a, b), 1.0 / np.sqrt(a)), "b": f.uniform((num_experts, b), 1.0 / np.sqrt(a))}
-            for a, b in zip(sizes[:-1], sizes[1:])]
+def init_moe(f: ParamFactory, sizes: Sequence[int], num_experts: int, zero_last: bool = False) -> list:
+    """Experts as stacked layers: W (E, d_in, d_out), b (E, d_out).  ``zero_last``: the output layer starts
+    at zero (a residual head whose untrained output is exactly 0)."""
+    n = len(sizes) - 1
+    lim = [0.0 if zero_last and i == n - 1 else 1.0 / np.sqrt(a) for i, a in enumerate(sizes[:-1])]
+    return [{"w": f.uniform((num_experts, a, b), lm), "b": f.uniform((num_experts, b), lm)}
+            for a, b, lm in zip(sizes[:-1], sizes[1:], lim)]
 
 
 def moe(params: list, x, alpha, tap=None):

@@ -35,7 +35,7 @@ def masked_mean(x, mask):
 
 def direction_losses(pred: dict, pos, kl, valid, gt: dict, stats, lcfg) -> dict:
     """State, KL and FK losses of one generator.  pred: frames (B, S, ...) where step m is own-time frame
-    m + 1; pos (B, S, J, 3) their FK positions; kl (B, S); valid (S,); gt also holds positions p (B, T, J, 3).
+    m + 1; pos (B, S, J, 3) their FK positions; kl (B, S, Z) per latent dimension; valid (S,); gt also holds positions p (B, T, J, 3).
     Returns a dict of scalars."""
     s = pred["q"].shape[1]
     g = {k: gt[k][:, 1:s + 1] for k in ("q", "r", "c")}
@@ -46,7 +46,17 @@ def direction_losses(pred: dict, pos, kl, valid, gt: dict, stats, lcfg) -> dict:
     state = masked_mean(lcfg.beta_quat * quat + lcfg.beta_vel * vel + lcfg.beta_contact * con, valid)
     gpos = gt["p"][:, 1:s + 1]
     fk = masked_mean(jnp.mean(jnp.abs(pos - gpos), axis=(-1, -2)) / stats["pos_unit"], valid)
-    return {"state": state, "kl": masked_mean(kl, valid), "fk": fk}
+    return {"state": state, "kl": masked_mean(jnp.sum(kl, -1), valid), "kl_term": masked_mean(kl_term(kl, lcfg), valid),
+            "fk": fk}
+
+
+def kl_term(kl, lcfg):
+    """The KL loss term from per-dimension KL (..., Z) in nats.  ``kl_reduce="sum"`` (paper): the sum over
+    the Z dimensions; ``"mean"``: their mean.  ``free_bits`` > 0: each dimension's KL below that many nats is
+    not penalised (max(KL_d, free_bits), Kingma et al. 2016), so the latent can carry information."""
+    if lcfg.free_bits > 0:
+        kl = jnp.maximum(kl, lcfg.free_bits)
+    return jnp.mean(kl, -1) if lcfg.kl_reduce == "mean" else jnp.sum(kl, -1)
 
 
 def stitch_loss(pos_f, pos_b, length, h, k, pos_unit=1.0):

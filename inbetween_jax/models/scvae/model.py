@@ -18,7 +18,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from inbetween_jax.geometry import quat_normalize
+from inbetween_jax.geometry import quat_normalize, quat_slerp
 from inbetween_jax.models.scvae import layers as nn
 from inbetween_jax.models.scvae.features import (PHASE_DIM, align_sign, dims, offset_features, reverse_time,
                                                  state_features)
@@ -48,10 +48,11 @@ def init_generator(f: nn.ParamFactory, cfg, num_joints: int) -> dict:
         enc["lstm"] = nn.init_lstm(f, 3 * o, cfg.lstm_hidden)
     else:
         enc["mlp"] = nn.init_mlp(f, (3 * o, cfg.lstm_hidden))
-    dec_in = cfg.latent_dim + 2 * o
+    dec_in = cfg.latent_dim + (3 if cfg.decoder_target else 2) * o
     n_exp = cfg.num_experts if cfg.phase_moe else 1
     dec = {"lstm": nn.init_lstm(f, dec_in, cfg.dec_lstm_hidden),
-           "experts": nn.init_moe(f, (cfg.dec_lstm_hidden,) + tuple(cfg.expert_hidden) + (d["out"],), n_exp)}
+           "experts": nn.init_moe(f, (cfg.dec_lstm_hidden,) + tuple(cfg.expert_hidden) + (d["out"],), n_exp,
+                                  zero_last=cfg.residual)}
     if cfg.phase_moe:
         dec["gating"] = nn.init_mlp(f, (PHASE_DIM,) + tuple(cfg.gating_hidden) + (cfg.num_experts,))
     return {"enc": enc, "dec": dec, "phase": init_phase_net(f, d["state"] + PHASE_DIM, cfg.phase_hidden)}
@@ -76,7 +77,8 @@ def encode(p: dict, cfg, carry, cur: dict, tgt: dict, tta, gamma, key, stats: di
     Stage 1 embeds (current, offset, target) -> LSTM -> N(mu, sigma); stage 2 replaces the current frame
     by the target (offset 0, tta 0) -> the same LSTM from the same carry -> N(mu_t, sigma_t).  Latent
     interpolation (Eq. 1) blends the two distributions' parameters with ``gamma`` (B,) and z is sampled.
-    Returns (new_enc_carry, z (B, Z), kl (B,), state_emb (B, O), target_emb (B, O)).  ``taps`` / ``rec``:
+    Returns (new_enc_carry, z (B, Z), kl (B, Z) per latent dimension, state_emb (B, O), target_emb (B, O),
+    offset_emb (B, O)).  ``taps`` / ``rec``:
     deferred weight gradients of the LSTM (see :func:`rollout`); the matmul inputs are stored in ``rec``.
     """
     tgt_q = align_sign(tgt["q"], cur["q"])
@@ -110,17 +112,20 @@ def encode(p: dict, cfg, carry, cur: dict, tgt: dict, tta, gamma, key, stats: di
     mu = (1.0 - g) * mu_c + g * mu_t
     sigma = (1.0 - g) * jnp.exp(0.5 * lv_c) + g * jnp.exp(0.5 * lv_t)
     z = mu + sigma * jax.random.normal(key, mu.shape, mu.dtype)
-    kl = 0.5 * jnp.sum(mu ** 2 + sigma ** 2 - 1.0 - 2.0 * jnp.log(sigma + 1e-8), axis=-1)
-    return new_carry, z, kl, s1, t1
+    kl = 0.5 * (mu ** 2 + sigma ** 2 - 1.0 - 2.0 * jnp.log(sigma + 1e-8))
+    return new_carry, z, kl, s1, t1, o1
 
 
-def decode(p: dict, cfg, carry, z, s_emb, t_emb, cur: dict, stats: dict, taps=None, rec=None):
-    """S-CVAE decoder (Fig. 5): LSTM over [z, state emb, target emb] (16 + 256 + 256 = 528 wide), then
-    the phase-gated mixture of experts (``p`` packed by :func:`pack_generator`).  Predicts root velocity, local-quaternion updates and contacts.
+def decode(p: dict, cfg, carry, z, embs: tuple, cur: dict, stats: dict, base=None, taps=None, rec=None):
+    """S-CVAE decoder (Fig. 5): LSTM over [z, state emb, target emb] (16 + 256 + 256 = 528 wide; with
+    ``cfg.decoder_target`` also the offset emb), then the phase-gated mixture of experts (``p`` packed by
+    :func:`pack_generator`).  Paper: predicts root velocity, local-quaternion updates and contacts.  With
+    ``cfg.residual`` the same outputs are offsets from ``base`` (the Slerp / lerp frame {q (B, J, 4),
+    r (B, 3)} between the keyframes at the time being generated): q = normalize(base q + dq), r = base r + dr.
     Returns (new_dec_carry, next_frame without phase)."""
     b, j = cur["q"].shape[:2]
     taps = taps or {}
-    x = jnp.concatenate([z, s_emb, t_emb], -1)
+    x = jnp.concatenate((z,) + tuple(embs), -1)
     new_carry, h = nn.lstm_packed(p["lstm"], carry, x, taps.get("dec_w"))
     if cfg.phase_moe:
         alpha = jax.nn.softmax(nn.mlp(p["gating"], jax.lax.stop_gradient(cur["phase"])), -1)
@@ -130,19 +135,25 @@ def decode(p: dict, cfg, carry, z, s_emb, t_emb, cur: dict, stats: dict, taps=No
     if rec is not None:
         rec.update(dec_w=jnp.concatenate([x, carry[0]], -1), moe0=h)
     dq = out[:, :4 * j].reshape(b, j, 4)
-    v = out[:, 4 * j:4 * j + 3] * stats["v_std"]
     c = jax.nn.sigmoid(out[:, 4 * j + 3:])
+    if cfg.residual:
+        q = quat_normalize(align_sign(base["q"], cur["q"]) + dq)
+        r = base["r"] + out[:, 4 * j:4 * j + 3] * stats["off_std"]
+        return new_carry, {"q": q, "r": r, "v": r - cur["r"], "c": c}
+    v = out[:, 4 * j:4 * j + 3] * stats["v_std"]
     q = quat_normalize(cur["q"] + dq)
     return new_carry, {"q": q, "r": cur["r"] + v, "v": v, "c": c}
 
 
-def generator_step(p: dict, cfg, carry, cur: dict, tgt: dict, tta, gamma, key, stats: dict, taps=None,
+def generator_step(p: dict, cfg, carry, cur: dict, tgt: dict, tta, gamma, key, stats: dict, base=None, taps=None,
                    rec=None):
-    """f_{i+1} = G(f_i | f_target).  Returns (new_carry, next_frame (with phase), kl (B,)).
-    ``taps`` / ``rec``: deferred weight gradients (see :func:`rollout`)."""
-    enc_carry, z, kl, s_emb, t_emb = encode(p["enc"], cfg, carry["enc"], cur, tgt, tta, gamma, key, stats,
-                                            taps, rec)
-    dec_carry, nxt = decode(p["dec"], cfg, carry["dec"], z, s_emb, t_emb, cur, stats, taps, rec)
+    """f_{i+1} = G(f_i | f_target).  Returns (new_carry, next_frame (with phase), kl (B, Z)).
+    ``base``: the interpolated frame for the residual decoder; ``taps`` / ``rec``: deferred weight
+    gradients (see :func:`rollout`)."""
+    enc_carry, z, kl, s_emb, t_emb, o_emb = encode(p["enc"], cfg, carry["enc"], cur, tgt, tta, gamma, key, stats,
+                                                   taps, rec)
+    embs = (s_emb, t_emb, o_emb) if cfg.decoder_target else (s_emb, t_emb)
+    dec_carry, nxt = decode(p["dec"], cfg, carry["dec"], z, embs, cur, stats, base, taps, rec)
     nxt["phase"] = phase_step(jax.lax.stop_gradient(p["phase"]), cur, stats)
     return {"enc": enc_carry, "dec": dec_carry}, nxt, kl
 
@@ -195,8 +206,12 @@ def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, k
     params = {name: pack_generator(g) for name, g in params.items()}   # once, outside the scan
     h, k = split_sizes(length, cfg.buffer_k)
     zero_v = jnp.zeros_like(start["r"])
-    s0 = dict(start, v=zero_v)
+    # the paper's keyframe carries no velocity; cfg.start_velocity uses the past frame's (start["v"])
+    s0 = dict(start, v=start["v"] if cfg.start_velocity and "v" in start else zero_v)
     t0 = dict(target, v=zero_v)
+    s0 = {n: s0[n] for n in ("q", "r", "c", "v")}
+    t0 = {n: t0[n] for n in ("q", "r", "c", "v")}
+    base_q, base_r = interpolation_path(start, target, length, max_length)   # (B, T1, J, 4), (B, T1, 3)
     s0["phase"] = phase_step(jax.lax.stop_gradient(params["fwd"]["phase"]), dict(s0, phase=jnp.zeros((b, PHASE_DIM))),
                              stats)
     carry_f = init_carry(cfg, b)
@@ -224,14 +239,18 @@ def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, k
         else:
             tgt_f, tta_f = t0, length - n
             gam_f = n / jnp.maximum(length - 1, 1) if cfg.latent_interp else 0.0
+        tf = jnp.minimum(n + 1, max_length)
+        base_f = {"q": base_q[:, tf], "r": base_r[:, tf]}
         cf, nxt_f, kl_f = generator_step(params["fwd"], cfg, cf, cur_f, tgt_f, tta_f * ones, gam_f * ones, kf, stats,
-                                         tap.get("fwd"), rec_f)
+                                         base_f, tap.get("fwd"), rec_f)
         out = {"fwd": nxt_f, "kl_fwd": kl_f}
         if cfg.bidirectional:
             tgt_b = _select(aligned, reverse_time(nxt_f), reverse_time(s0))
             tta_b = jnp.where(aligned, length - 2 * n - 1, length - n)
+            tb = jnp.clip(length - 1 - n, 0, max_length)
+            base_b = {"q": base_q[:, tb], "r": base_r[:, tb]}
             cb, nxt_b, kl_b = generator_step(params["bwd"], cfg, cb, cur_b, tgt_b, tta_b * ones, gam_f * ones, kb,
-                                             stats, tap.get("bwd"), rec_b)
+                                             stats, base_b, tap.get("bwd"), rec_b)
             out.update(bwd=nxt_b, kl_bwd=kl_b)
             cur_b = nxt_b
         rec = {"fwd": rec_f, "bwd": rec_b} if tap else {}
@@ -245,10 +264,33 @@ def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, k
     if cfg.bidirectional:
         res["valid"] = (m < h + k) & (m + 1 <= length - 1)
         res["out"] = stitch(start, target, ys["fwd"], reverse_time(ys["bwd"]), length, h, k, max_length)
+        res["seam"] = seam_mismatch(ys["fwd"], ys["bwd"], length, h, k, stats)
     else:
         res["valid"] = m < length - 1
         res["out"] = forward_only(start, target, ys["fwd"], length, max_length)
     return res
+
+
+def interpolation_path(start: dict, target: dict, length, max_length: int):
+    """Slerp of local quaternions and lerp of the root between the keyframes at times 0..max_length
+    (times >= length hold the target).  Returns q (B, T1, J, 4), r (B, T1, 3), T1 = max_length + 1."""
+    w = jnp.clip(jnp.arange(max_length + 1, dtype=jnp.float32) / jnp.maximum(length, 1).astype(jnp.float32), 0, 1)
+    q = quat_slerp(start["q"][:, None], align_sign(target["q"], start["q"])[:, None], w[None, :, None])
+    r = start["r"][:, None] + w[None, :, None] * (target["r"] - start["r"])[:, None]
+    return q, r
+
+
+def seam_mismatch(fwd: dict, bwd: dict, length, h, k, stats: dict):
+    """How far apart the two generators are where they are blended (times h-K+1 .. h+K): mean |q_f - q_b|
+    over joints plus |r_f - r_b| / pos_unit.  fwd / bwd (B, S, ...) in generation order -> (B,)."""
+    steps = fwd["q"].shape[1]
+    t = jnp.arange(1, steps + 1)
+    bi = jnp.clip(length - 1 - t, 0, steps - 1)
+    bq = align_sign(_gather_time(bwd["q"], bi), fwd["q"])
+    d = (jnp.mean(jnp.abs(fwd["q"] - bq), axis=(-1, -2))
+         + jnp.mean(jnp.abs(fwd["r"] - _gather_time(bwd["r"], bi)), -1) / stats["pos_unit"])
+    mask = ((t >= h - k + 1) & (t <= h + k)).astype(d.dtype)
+    return jnp.sum(d * mask, -1) / jnp.maximum(jnp.sum(mask), 1.0)
 
 
 def _gather_time(x, idx):
@@ -299,8 +341,24 @@ def _with_keyframes(start, target, seq, t, length):
 
 def sample(params: dict, cfg, stats: dict, start: dict, target: dict, length, keys, max_length: int) -> dict:
     """N diverse transitions: ``vmap`` of :func:`rollout` over keys (N,). Returns the rollout dict with a
-    leading sample axis (N, B, ...). Jit it with ``cfg`` and ``max_length`` static."""
-    return jax.vmap(lambda kk: rollout(params, cfg, stats, start, target, length, kk, max_length))(keys)
+    leading sample axis (N, B, ...). Jit it with ``cfg`` and ``max_length`` static.
+
+    Latent pair search (paper, test time; ``cfg.search`` > 1, bi-directional model): each of the N samples
+    draws ``cfg.search`` latent pairs (one more vmapped axis) and keeps, per keyframe pair, the one whose two
+    generators meet best (smallest :func:`seam_mismatch`)."""
+    one = lambda kk: rollout(params, cfg, stats, start, target, length, kk, max_length)
+    if cfg.search <= 1 or not cfg.bidirectional:
+        return jax.vmap(one)(keys)
+    cand = jax.vmap(jax.vmap(one))(jax.vmap(lambda kk: jax.random.split(kk, cfg.search))(keys))   # (N, C, B, ...)
+    best = jnp.argmin(cand["seam"], axis=1)                                                      # (N, B)
+
+    def pick(x):   # (N, C, B, ...) -> (N, B, ...)
+        idx = best.reshape(best.shape + (1,) * (x.ndim - 3))[:, None]
+        return jnp.take_along_axis(x, idx, axis=1)[:, 0]
+
+    shared = ("valid", "h", "k")   # no batch axis: the same for every candidate
+    return {n: jax.tree.map(lambda x: x[:, 0], v) if n in shared else jax.tree.map(pick, v)
+            for n, v in cand.items()}
 
 
 def init_params(key, cfg, num_joints: int) -> dict:

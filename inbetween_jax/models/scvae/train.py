@@ -26,7 +26,7 @@ from inbetween_jax.models.spec import Training
 from inbetween_jax.train.optim import make_optimizer
 
 __all__ = ["load_data", "make_training", "make_init_fn", "make_train_step", "batch_fn_factory", "make_batch",
-           "split_batch", "generator_loss", "transition_length"]
+           "split_batch", "generator_loss", "transition_length", "scan_length"]
 
 
 def load_data(cfg, source: str, split: str = "train") -> TrainData:
@@ -38,8 +38,8 @@ def load_data(cfg, source: str, split: str = "train") -> TrainData:
     """
     from inbetween_jax.data import load_dataset
     from inbetween_jax.data.datasets import is_lafan1, split_files, window_settings
-    windows = load_dataset(source, split)
-    if cfg.data.trans_max + 2 > windows.window:
+    windows = load_dataset(source, split, window=cfg.data.window or None)
+    if cfg.data.trans_max + 2 + int(cfg.model.start_velocity) > windows.window:
         raise ValueError(f"{source}: {windows.window}-frame {split} windows are too short for "
                          f"data.trans_max={cfg.data.trans_max} (at most {windows.window - 2})")
     ws = window_settings(source, split)
@@ -72,20 +72,39 @@ def make_training(cfg, data: TrainData) -> Training:
 
 def transition_length(step: int, cfg, num_windows: int) -> int:
     """Progressive training: ``data.trans_start`` + 1 every ``data.epochs_per_increment`` epochs (an epoch:
-    ``num_windows // train.batch_size`` steps), capped at ``data.trans_max``.  cfg: Config."""
+    ``num_windows // train.batch_size`` steps), capped at ``data.trans_max``; with ``data.ramp_steps`` > 0
+    the same ramp runs linearly over that many steps instead.  cfg: Config."""
     dcfg = cfg.data
+    if dcfg.ramp_steps > 0:
+        frac = min(1.0, step / dcfg.ramp_steps)
+        return int(round(dcfg.trans_start + frac * (dcfg.trans_max - dcfg.trans_start)))
     steps_per_epoch = max(1, num_windows // cfg.train.batch_size)
     inc = int(step // max(1.0, dcfg.epochs_per_increment * steps_per_epoch))
     return int(min(dcfg.trans_max, dcfg.trans_start + inc))
 
 
-def make_batch(data: TrainData, idx: np.ndarray, starts: np.ndarray, length: int, max_length: int) -> dict:
-    """Cut frames start..start+length of windows idx, padded to max_length+1 frames with the target."""
+def scan_length(length: int, cfg) -> int:
+    """Static rollout length (frames between keyframes) of a batch whose keyframes are ``length`` apart:
+    ``trans_max + 1`` (paper: one shape) or, with ``data.bucket`` > 0, ``length`` rounded up to a multiple of
+    the bucket, so short stages of the progressive schedule run shorter scans (one compile per bucket)."""
+    top = cfg.data.trans_max + 1
+    if cfg.data.bucket <= 0:
+        return top
+    return int(min(top, -(-length // cfg.data.bucket) * cfg.data.bucket))
+
+
+def make_batch(data: TrainData, idx: np.ndarray, starts: np.ndarray, length: int, max_length: int,
+               velocity: bool = False) -> dict:
+    """Cut frames start..start+length of windows idx, padded to max_length+1 frames with the target.
+    ``velocity``: also ``v0`` (B, 3), the root velocity into the start keyframe (start - previous frame)."""
     t = np.minimum(np.arange(max_length + 1)[None, :], length) + starts[:, None]   # (B, T1)
     rows = idx[:, None]
-    return {"q": data.q[rows, t], "r": data.r[rows, t], "c": data.c[rows, t],
-            "phase_f": data.phase_f[rows, t], "phase_b": data.phase_b[rows, t], "p": data.p[rows, t],
-            "length": np.int32(length)}
+    batch = {"q": data.q[rows, t], "r": data.r[rows, t], "c": data.c[rows, t],
+             "phase_f": data.phase_f[rows, t], "phase_b": data.phase_b[rows, t], "p": data.p[rows, t],
+             "length": np.int32(length)}
+    if velocity:
+        batch["v0"] = data.r[idx, starts] - data.r[idx, starts - 1]
+    return batch
 
 
 def batch_fn_factory(data: TrainData, cfg):
@@ -97,13 +116,17 @@ def batch_fn_factory(data: TrainData, cfg):
                          f"(these have {window})")
     batch_size = cfg.train.batch_size
 
+    vel = bool(cfg.model.start_velocity)
+
     def batch_fn(step, key):
         seed = np.asarray(jax.random.key_data(key)).astype(np.uint64)
         rng = np.random.default_rng(seed)
         length = transition_length(step, cfg, len(data)) + 1
+        if cfg.data.length_mode == "mixed":   # any length up to the current maximum, one per batch
+            length = int(rng.integers(cfg.data.trans_start + 1, length + 1))
         idx = rng.integers(0, len(data), batch_size)
-        starts = rng.integers(0, window - length, batch_size)
-        return make_batch(data, idx, starts, length, max_length)
+        starts = rng.integers(int(vel), window - length, batch_size)
+        return make_batch(data, idx, starts, length, scan_length(length, cfg), vel)
 
     return batch_fn
 
@@ -114,6 +137,8 @@ def split_batch(batch: dict):
     t1 = batch["q"].shape[1]
     take = lambda x, i: jnp.take(x, i, axis=1)
     start = {"q": batch["q"][:, 0], "r": batch["r"][:, 0], "c": batch["c"][:, 0]}
+    if "v0" in batch:
+        start["v"] = batch["v0"]
     target = {"q": take(batch["q"], length), "r": take(batch["r"], length), "c": take(batch["c"], length)}
     gt_f = {"q": batch["q"], "r": batch["r"], "c": batch["c"], "phase": batch["phase_f"], "p": batch["p"]}
     rev = jnp.clip(length - jnp.arange(t1), 0, t1 - 1)
@@ -156,12 +181,12 @@ def generator_loss(params, disc, cfg, stats, batch, key, parents, max_length, ta
     if mcfg.bidirectional:
         lb = L.direction_losses(res["bwd"], pos_b, res["kl_bwd"], res["valid"], gt_b, stats, lcfg)
         ph = 0.5 * (ph + L.phase_loss(params["bwd"]["phase"], gt_b, length, stats))
-        d = {n: 0.5 * (lf[n] + lb[n]) for n in ("state", "kl", "fk")}
+        d = {n: 0.5 * (lf[n] + lb[n]) for n in ("state", "kl", "kl_term", "fk")}
         stitch = L.stitch_loss(pos_f, pos_b, length, res["h"], res["k"], stats["pos_unit"])
     else:
-        d = {n: lf[n] for n in ("state", "kl", "fk")}
+        d = {n: lf[n] for n in ("state", "kl", "kl_term", "fk")}
         stitch = jnp.float32(0.0)
-    loss = d["state"] + lcfg.alpha_kl * d["kl"] + lcfg.alpha_fk * d["fk"] + lcfg.phase * ph
+    loss = d["state"] + lcfg.alpha_kl * d.pop("kl_term") + lcfg.alpha_fk * d["fk"] + lcfg.phase * ph
     if mcfg.bidirectional and mcfg.stitch_loss:
         loss = loss + lcfg.alpha_stitch * stitch
     lg = jnp.float32(0.0)
@@ -175,12 +200,14 @@ def generator_loss(params, disc, cfg, stats, batch, key, parents, max_length, ta
     return loss, (m, res["out"], recs)
 
 
-def make_train_step(cfg, parents: tuple, max_length: int):
-    """Pure ``(state, batch, key) -> (state, metrics)``."""
+def make_train_step(cfg, parents: tuple, max_length: int | None = None):
+    """Pure ``(state, batch, key) -> (state, metrics)``; the rollout length comes from the batch's shape
+    (``max_length`` is accepted for callers that pass it and is not used)."""
     opt = make_optimizer(cfg.train)
 
     def train_step(state, batch, key):
         stats = state["stats"]
+        max_length = batch["q"].shape[1] - 1   # static: one compile per scan bucket (:func:`scan_length`)
         if cfg.model.deferred_wgrad:   # largest weight gradients as one matmul each after the scan
             taps = make_taps(state["params"], cfg.model, batch["q"].shape[0], M.num_scan_steps(cfg.model, max_length))
             grad_fn = jax.value_and_grad(generator_loss, argnums=(0, 8), has_aux=True)

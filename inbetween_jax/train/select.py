@@ -1,0 +1,55 @@
+"""Checkpoint selection on a validation split cut from the training data (never the test windows).
+
+A run trained with ``train.split="fit"`` holds the validation files out of training (see
+:func:`inbetween_jax.data.datasets.split_files`).  :func:`select_checkpoint` scores every checkpoint of the
+run with the model's ``bench.val_score(run, source)`` (lower is better) and writes ``selection.json`` beside
+``run.json``; :func:`inbetween_jax.train.run.load_run` then opens the selected step unless a step is asked for.
+"""
+from __future__ import annotations
+
+import json
+import os
+from typing import Callable
+
+SELECTION_FILE = "selection.json"
+
+__all__ = ["SELECTION_FILE", "select_checkpoint", "selected_step"]
+
+
+def selected_step(run_dir: str) -> int | None:
+    """The step recorded in ``selection.json`` (None when the run has no selection)."""
+    path = os.path.join(run_dir, SELECTION_FILE)
+    if not os.path.exists(path):
+        return None
+    try:
+        with open(path) as f:
+            return int(json.load(f)["step"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def select_checkpoint(run_dir: str, source: str, score_fn: Callable, metric: str,
+                      log: Callable[[str], None] | None = print) -> dict:
+    """Score each checkpoint of ``run_dir`` with ``score_fn(run) -> float`` (lower is better) on ``source``'s
+    validation split; record and return ``{"metric", "split", "source", "scores": {step: score}, "step"}``."""
+    from inbetween_jax.train.run import _checkpoint_steps, load_run
+    steps = _checkpoint_steps(os.path.join(run_dir, "checkpoints"))
+    scores = {}
+    for step in steps:
+        if step == 0:
+            continue
+        scores[step] = float(score_fn(load_run(run_dir, step)))
+        if log:
+            log(f"validation: step {step}: {metric} {scores[step]:.4f}")
+    if not scores:
+        return {}
+    best = min(scores, key=lambda s: (scores[s], -s))
+    out = {"metric": metric, "split": "val", "source": source, "scores": {str(k): v for k, v in scores.items()},
+           "step": int(best)}
+    tmp = os.path.join(run_dir, SELECTION_FILE + ".tmp")
+    with open(tmp, "w") as f:
+        json.dump(out, f, indent=1)
+    os.replace(tmp, os.path.join(run_dir, SELECTION_FILE))
+    if log:
+        log(f"selected step {best} ({metric} {scores[best]:.4f} on the validation split)")
+    return out
