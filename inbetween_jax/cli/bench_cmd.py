@@ -5,8 +5,9 @@ Writes ``<results>/bench.md`` and ``<results>/bench.json`` (with ``rows``: one r
 1. the official LaFAN1 baseline table (zero-velocity / interpolation; L2Q, L2P, NPSS at 5/15/30/45, 10 past
    frames);
 2. the S-CVAE paper's Table 1 layout (APD L2P L2Q ADE SLDE NPSS FootSlide at 10/30/50, one past keyframe);
-3. each registered model's own tables, from the run folder ``<runs>/<model>``; models without a run are listed
-   as skipped.
+3. each registered model's own tables, from the run folder ``<runs>/<model>``; a model without a run is
+   evaluated with the weights shipped in the package when they fit the source's skeleton (CMU-trained: the
+   embedded / CMU sources, not LaFAN1), its rows marked ``"weights": "shipped"``; otherwise it is listed as skipped.
 L2P statistics: computed from the source's training windows, or read from ``--l2p-stats FILE.npz``
 (``x_mean``, ``x_std`` of shape (1, J*3, 1), e.g. the official LaFAN1 ``train_stats``).
 Each section is announced on stderr while it runs.
@@ -69,6 +70,41 @@ def _check(args) -> list:
     return models
 
 
+def shipped_section(model: str, run_dir: str, source: str, data: str, skeleton, args) -> dict | None:
+    """``model``'s section from its shipped weights (rows marked ``weights: shipped``), a skip line saying why they
+    do not apply, or None when no weights ship for it."""
+    from inbetween_jax.data import Skeleton
+    from inbetween_jax.shipped import shipped_dir, shipped_run
+    from inbetween_jax.train.run import RunError
+    folder = shipped_dir(model)
+    if folder is None:
+        return None
+    skip = f"**{model}**: skipped, no run in `{run_dir}`"
+    try:
+        run_ = shipped_run(model)
+    except RunError as err:
+        return {"markdown": f"{skip}; the shipped weights are unusable ({err}).", "rows": []}
+    trained_on = run_.shipped.get("data_source") or "CMU mocap"
+    if data == "lafan1":
+        return {"markdown": f"{skip}; the shipped {model} weights were trained on CMU mocap ({trained_on}) and do not "
+                            f"apply to LaFAN1 (train one with `inbetween train {model}`).", "rows": []}
+    skel = Skeleton.from_dict(run_.skeleton) if run_.skeleton else None
+    if skel is None or not skel.same_topology(skeleton):
+        return {"markdown": f"{skip}; the shipped {model} weights ({skel.num_joints if skel else '?'} joints) do not fit "
+                            f"this source's {skeleton.num_joints}-joint skeleton.", "rows": []}
+    say(f"{model}: no run in {run_dir}, evaluating the shipped weights ({folder}, step {run_.step})")
+    try:
+        out = REGISTRY[model].benchmark(source, args.results, folder, args.quick)
+    except (OSError, ValueError) as err:
+        return {"markdown": f"{skip}; shipped weights: {err}", "rows": []}
+    for row in out.get("rows", []):
+        row["weights"] = "shipped"
+    out["weights"] = {"shipped": folder, "step": run_.step, "trained_on": trained_on}
+    out["markdown"] = (f"**{model}: shipped weights** (step {run_.step}, trained on {trained_on}; no run in "
+                       f"`{run_dir}`)\n\n{out.get('markdown', '')}")
+    return out
+
+
 def run(args) -> int:
     models = _check(args)
     import jax
@@ -104,7 +140,11 @@ def run(args) -> int:
     for i, model in enumerate(models):
         run_dir = os.path.join(args.runs, model)
         say(f"section {3 + i}: {model} (runs in {run_dir})")
-        if not os.path.exists(run_dir):
+        shipped = None if os.path.exists(run_dir) else shipped_section(model, run_dir, source, data, bench.skeleton,
+                                                                       args)
+        if shipped is not None:
+            out = shipped
+        elif not os.path.exists(run_dir):
             out = {"markdown": f"**{model}**: skipped, no run in `{run_dir}` (train one with "
                                f"`inbetween train {model}`, or point `--runs` at a folder holding `{model}/`).",
                    "rows": []}

@@ -3,7 +3,8 @@
 Outputs are BVH files on the input's skeleton (same joint names, offsets and channel layout) plus
 ``infill.json`` (run folder, step, inputs, seed); ``--preview`` adds a contact sheet per sample (keyframes /
 known frames black, generated frames grey), ``--gif`` an animation.  Every model says which options it needs
-(``INFILL_OPTIONS`` of its package).  Errors caused by the inputs print one line and write nothing.
+(``INFILL_OPTIONS`` of its package).  Without ``--ckpt`` the weights shipped in the package for ``--model``
+are used (:mod:`inbetween_jax.shipped`).  Errors caused by the inputs print one line and write nothing.
 """
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from inbetween_jax.models import MODELS, REGISTRY
 
 MAX_SAMPLES = 1000
 EXAMPLES = """examples:
+  inbetween infill --model scvae --start a.bvh:0 --end b.bvh:120 --frames 30 --out out/   (shipped weights)
   inbetween infill --model scvae --ckpt runs/scvae --start a.bvh:0 --end b.bvh:120 --frames 30 --samples 10 --out out/
   inbetween infill --model cae --ckpt runs/cae/cae --bvh in.bvh --gaps 100:160,300:420 --out out/ --preview
   inbetween infill --model interaction --ckpt runs/interaction --a a.bvh:40 --b b.bvh:40 \\
@@ -39,7 +41,8 @@ def add_parser(sub) -> None:
                        description=__doc__.split("\n\n")[1].replace("\n", " "), epilog=EXAMPLES,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--model", required=True, help=" | ".join(MODELS))
-    p.add_argument("--ckpt", required=True, metavar="RUN_DIR", help="training run folder (run.json + checkpoints/)")
+    p.add_argument("--ckpt", default=None, metavar="RUN_DIR",
+                   help="training run folder (run.json + checkpoints/; default: the weights shipped for --model)")
     p.add_argument("--out", required=True, help="output folder (created; must be empty unless --overwrite)")
     for dest, (metavar, text, _) in _model_options().items():
         p.add_argument("--" + dest.replace("_", "-"), dest=dest, metavar=metavar, help=text,
@@ -124,8 +127,24 @@ def check_args(args) -> None:
 
 
 def load_checked_run(args):
-    """The ``--ckpt`` run folder, checked to hold a run of ``--model`` (one-line UserError otherwise)."""
+    """The ``--ckpt`` run folder (default: the shipped weights of ``--model``), checked to hold a run of
+    ``--model`` (one-line UserError otherwise)."""
     from inbetween_jax.train.run import RunError, load_run
+    if args.ckpt is None:
+        from inbetween_jax.shipped import shipped_run
+        try:
+            run = shipped_run(args.model)
+        except RunError as e:
+            raise UserError(str(e)) from None
+        if run is None:
+            raise UserError(f"no trained weights ship for --model {args.model}; pass --ckpt RUN_DIR (a run of "
+                            f"`inbetween train {args.model}`)")
+        if args.step is not None and args.step != run.step:
+            raise UserError(f"--step {args.step}: the shipped {args.model} weights hold step {run.step} only "
+                            "(pass --ckpt RUN_DIR for other steps)")
+        print(f"inbetween: using the shipped {args.model} weights (step {run.step}, trained on "
+              f"{run.shipped.get('data_source') or 'unknown data'})", file=sys.stderr)
+        return run
     try:
         run = load_run(args.ckpt, args.step)
     except RunError as e:
@@ -157,7 +176,8 @@ def run_infill(args) -> int:
         if args.preview:
             add_previews(files, name, motions, generated, result.what, gif=args.gif)
     files.update(result.extra_files)
-    summary = dict(result.summary, model=args.model, checkpoint=run.run_dir, step=run.step, seed=args.seed)
+    summary = dict(result.summary, model=args.model, checkpoint=run.run_dir, step=run.step, seed=args.seed,
+                   weights="shipped" if run.weights else "checkpoint")
     files["infill.json"] = json_writer(summary)
     for note in result.notes:
         print(f"inbetween: note: {note}", file=sys.stderr)

@@ -7,6 +7,10 @@ A run folder holds::
     checkpoints/<step>/   orbax state written by :func:`inbetween_jax.train.run_training`
     metrics.csv, metrics.jsonl
 
+A *shipped* run folder (:mod:`inbetween_jax.shipped`) holds ``run.json`` (with a ``shipped`` record: step, dtype,
+kept key paths, provenance) and ``params.npz`` (the inference parameters, '/'-joined key paths) instead of
+``checkpoints/``; :func:`load_run` and :func:`restore_state` read it the same way.
+
 ``run.json`` is written (atomically) before training starts; resuming with another model, preset or core config
 (anything but ``train.num_steps`` / ``log_every`` / ``ckpt_every``) is refused with a one-line :class:`RunError`.
 Statistics are JSON lists; :func:`load_run` returns them as float32 NumPy arrays.
@@ -21,10 +25,11 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["RUN_FILE", "FORMAT", "RunError", "Run", "write_run", "load_run", "record_training", "restore_state",
-           "to_json_arrays", "from_json_arrays"]
+__all__ = ["RUN_FILE", "WEIGHTS_FILE", "FORMAT", "RunError", "Run", "write_run", "load_run", "record_training",
+           "restore_state", "to_json_arrays", "from_json_arrays", "flat_leaves"]
 
 RUN_FILE = "run.json"
+WEIGHTS_FILE = "params.npz"
 FORMAT = 1
 _NOT_CORE = ("num_steps", "log_every", "ckpt_every")
 
@@ -48,6 +53,8 @@ class Run:
     extra: dict                      # model-specific metadata
     history: list
     step: int | None                 # checkpoint step to restore (None: no checkpoint yet)
+    weights: str | None = None       # params.npz of a shipped run (restored instead of checkpoints/)
+    shipped: dict | None = None      # run.json's "shipped" record (step, dtype, keep, provenance)
 
     @property
     def checkpoint_dir(self) -> str:
@@ -166,6 +173,8 @@ def load_run(run_dir: str, step: int | None = None, need_checkpoint: bool = True
     if not os.path.isdir(run_dir):
         raise RunError(f"{run_dir}: not a folder (expected a training run folder)")
     meta = _read(os.path.join(run_dir, RUN_FILE), run_dir)
+    if isinstance(meta.get("shipped"), dict):
+        return _shipped_run(run_dir, meta, step)
     steps = _checkpoint_steps(os.path.join(run_dir, "checkpoints"))
     if step is None:
         from .select import selected_step
@@ -175,15 +184,33 @@ def load_run(run_dir: str, step: int | None = None, need_checkpoint: bool = True
         raise RunError(f"{run_dir}: no checkpoint at step {step} (found {steps or 'none'})")
     if step is None and need_checkpoint:
         raise RunError(f"{run_dir}: no checkpoint found (expected checkpoints/<step>/ written by training)")
+    return _run(run_dir, meta, step)
+
+
+def _run(run_dir: str, meta: dict, step, **kw) -> Run:
     return Run(run_dir=os.path.abspath(run_dir), model=meta["model"], preset=meta.get("preset", ""),
                overrides=list(meta.get("overrides", [])), config=meta["config"], skeleton=meta.get("skeleton"),
                fps=meta.get("fps"), stats=from_json_arrays(meta.get("stats", {})), data=meta.get("data", {}),
-               extra=meta.get("extra", {}), history=meta.get("history", []), step=step)
+               extra=meta.get("extra", {}), history=meta.get("history", []), step=step, **kw)
+
+
+def _shipped_run(run_dir: str, meta: dict, step: int | None) -> Run:
+    shipped = meta["shipped"]
+    path = os.path.join(run_dir, WEIGHTS_FILE)
+    if not os.path.isfile(path):
+        raise RunError(f"{run_dir}: shipped weights without {WEIGHTS_FILE}")
+    if not isinstance(shipped.get("step"), int):
+        raise RunError(f"{run_dir}: {RUN_FILE} records no shipped step")
+    if step is not None and step != shipped["step"]:
+        raise RunError(f"{run_dir}: shipped weights hold step {shipped['step']} only (asked for step {step})")
+    return _run(run_dir, meta, shipped["step"], weights=os.path.abspath(path), shipped=shipped)
 
 
 def restore_state(run: Run, target: Any) -> Any:
     """Restore ``run.step``'s state into the structure of ``target`` (arrays or ``jax.ShapeDtypeStruct``)."""
     from .checkpoint import Checkpointer
+    if run.weights:
+        return _restore_weights(run, target)
     if run.step is None:
         raise RunError(f"{run.run_dir}: no checkpoint to restore")
     ckpt = Checkpointer(run.checkpoint_dir)
@@ -194,3 +221,53 @@ def restore_state(run: Run, target: Any) -> Any:
         raise RunError(f"{run.checkpoint_dir}/{run.step}: cannot restore the checkpoint ({msg[:200]})") from None
     finally:
         ckpt.close()
+
+
+def _key_name(k) -> str:
+    for attr in ("key", "idx", "name"):          # DictKey, SequenceKey, GetAttrKey
+        if hasattr(k, attr):
+            return str(getattr(k, attr))
+    return str(k)
+
+
+def flat_leaves(tree: Any) -> dict:
+    """``{"a/b/0/c": leaf}``: the leaves of a pytree under their '/'-joined key paths (tree order)."""
+    import jax
+    leaves, _ = jax.tree_util.tree_flatten_with_path(tree)
+    return {"/".join(_key_name(k) for k in path): leaf for path, leaf in leaves}
+
+
+def _under(path: str, prefixes) -> bool:
+    return any(path == p or path.startswith(p + "/") for p in prefixes)
+
+
+def _restore_weights(run: Run, target: Any) -> Any:
+    """A shipped run's ``params.npz`` in the structure of ``target``: arrays cast to the target's dtypes; leaves
+    outside the kept key paths (optimizer state, discriminators ...) are zeros of the target's shape / dtype."""
+    import zipfile
+
+    import jax
+    import jax.numpy as jnp
+    keep = list(run.shipped.get("keep", []))
+    try:
+        with np.load(run.weights, allow_pickle=False) as z:
+            stored = {k: z[k] for k in z.files}
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as e:
+        msg = str(e).splitlines()[0] if str(e) else "empty"
+        raise RunError(f"{run.weights}: cannot read the shipped weights ({type(e).__name__}: {msg[:200]})") from None
+    leaves, treedef = jax.tree_util.tree_flatten_with_path(target)
+    out = []
+    for path, leaf in leaves:
+        name = "/".join(_key_name(k) for k in path)
+        shape, dtype = tuple(leaf.shape), leaf.dtype
+        if name in stored:
+            arr = stored[name]
+            if tuple(arr.shape) != shape:
+                raise RunError(f"{run.weights}: {name} has shape {tuple(arr.shape)}, the model expects {shape} "
+                               "(weights of another config)")
+            out.append(jnp.asarray(arr, dtype))
+        elif _under(name, keep):
+            raise RunError(f"{run.weights}: {name} is missing (weights of another config or version)")
+        else:
+            out.append(jnp.zeros(shape, dtype))
+    return jax.tree_util.tree_unflatten(treedef, out)
