@@ -5,7 +5,8 @@ Writes ``<results>/bench.md`` and ``<results>/bench.json`` (with ``rows``: one r
 1. the official LaFAN1 baseline table (zero-velocity / interpolation; L2Q, L2P, NPSS at 5/15/30/45, 10 past
    frames);
 2. the S-CVAE paper's Table 1 layout (APD L2P L2Q ADE SLDE NPSS FootSlide at 10/30/50, one past keyframe);
-3. each registered model's own tables, from the run folder ``<runs>/<model>``; a model without a run is
+3. each registered model's own tables, from the run folder ``<runs>/<model>`` (and ``<runs>/<model>_<name>``
+   folders: the same model with another preset, e.g. ``scvae_cpu`` beside ``scvae``); a model without a run is
    evaluated with the weights shipped in the package when they fit the source's skeleton (CMU-trained: the
    embedded / CMU sources, not LaFAN1), its rows marked ``"weights": "shipped"``; otherwise it is listed as skipped.
 L2P statistics: computed from the source's training windows, or read from ``--l2p-stats FILE.npz``
@@ -105,6 +106,14 @@ def shipped_section(model: str, run_dir: str, source: str, data: str, skeleton, 
     return out
 
 
+def variant_run_dirs(runs: str, model: str) -> list:
+    """Run folders ``<runs>/<model>_<name>`` (the same model trained with another preset or budget)."""
+    if not os.path.isdir(runs):
+        return []
+    return [os.path.join(runs, d) for d in sorted(os.listdir(runs))
+            if d.startswith(model + "_") and os.path.isfile(os.path.join(runs, d, "run.json"))]
+
+
 def run(args) -> int:
     models = _check(args)
     import jax
@@ -156,6 +165,15 @@ def run(args) -> int:
         rows += out.get("rows", [])
         results["models"][model] = {k: v for k, v in out.items() if k not in ("markdown", "rows")}
         sections.append(out.get("markdown", ""))
+        for extra in variant_run_dirs(args.runs, model):   # e.g. runs/scvae_cpu: the same model, another preset
+            say(f"section {3 + i}: {model} (variant run {extra})")
+            try:
+                out = REGISTRY[model].benchmark(source, args.results, extra, args.quick)
+            except (OSError, ValueError) as err:
+                out = {"markdown": f"**{model}** (`{extra}`): skipped, {err}", "rows": []}
+            rows += out.get("rows", [])
+            results["models"][os.path.basename(extra)] = {k: v for k, v in out.items() if k not in ("markdown", "rows")}
+            sections.append(out.get("markdown", ""))
     sections.append(f"Benchmark wall time: {time.time() - t0:.1f} s.")
     results["rows"] = rows
     text = "\n\n".join(s for s in sections if s) + "\n"

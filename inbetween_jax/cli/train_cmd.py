@@ -80,10 +80,22 @@ def run(args) -> int:
     index, count = distributed.initialize()        # a no-op for one process; a cluster launcher is auto-detected
     from inbetween_jax.runner import train_model
     primary = index == 0
-    train_model(args.model, args.preset, args.overrides, args.source, args.run_dir,
+    train_model(args.model, args.preset, args.overrides, default_source(args.model, args.source), args.run_dir,
                 progress=primary and not args.no_progress, log=print if primary else None,
                 mesh=distributed.global_mesh() if count > 1 else None)
     return 0
+
+
+CMU_DEFAULT_MODELS = ("scvae", "cae")
+
+
+def default_source(model: str, source):
+    """``--source`` if given, else ``$LAFAN1_DIR``; else, for the single-character models, ``cmu`` (every CMU clip
+    on the embedded rig) when the shared mocap folder is found, else the embedded clips."""
+    if source or os.environ.get("LAFAN1_DIR") or model not in CMU_DEFAULT_MODELS:
+        return source
+    from inbetween_jax.paths import shared_data_dir
+    return "cmu" if shared_data_dir() else None
 
 
 def _without_num_processes(argv: list) -> list:

@@ -74,18 +74,47 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
         rows.append(row)
     rows.sort(key=lambda r: (r["frames"], r["method"] != "Slerp"))
     cols = tuple(TABLE_COLUMNS) + ("MMPE",)
+    variant = f"S-CVAE ({run_.preset})"
+    for r in rows:
+        if r["method"] == "S-CVAE":
+            r["method"] = variant
     md = markdown_table(rows, cols, f"S-CVAE, Table 1 layout ({len(bench)} windows, {NUM_SAMPLES} samples)")
+    official = official_rows(trained, bench, x_mean, x_std, variant)
+    vel = "with" if trained.cfg.model.start_velocity else "without"
+    md += "\n\n" + markdown_table(official, ("L2Q", "L2P", "NPSS"),
+                                  f"S-CVAE, official LaFAN1 protocol (10 past frames; the model uses them {vel} the "
+                                  f"past frame's root velocity; metrics averaged over {NUM_SAMPLES} samples)")
     os.makedirs(results_dir, exist_ok=True)
     plot = error_over_time_plot(bench, max(lengths), longest, "S-CVAE",
                                 os.path.join(results_dir, "scvae_error_over_time.png"))
     md += (f"\n\n{note}APD/ADE/SLDE in m, FootSlide in cm/frame, MMPE in cm. Error along the {max(lengths)}-frame "
            f"transition: `{os.path.basename(plot)}`. Wall {time.time() - t0:.0f} s.")
-    data = "lafan1" if is_lafan1(source) else "embedded" if source == "embedded" else "bvh"
+    data = "lafan1" if is_lafan1(source) else source if source in ("embedded", "cmu") else "bvh"
     records = (flat_rows([r for r in rows if r["method"] == "Slerp"], "table1", data, model="slerp")
                + flat_rows([r for r in rows if r["method"] != "Slerp"], "table1", data, model="scvae",
+                           variant=run_.preset)
+               + flat_rows([r for r in official if r["method"] == variant], "official", data, model="scvae",
                            variant=run_.preset))
     return {"markdown": md, "rows": records, "table": rows, "step": trained.step, "source": source,
             "windows": len(bench), "plots": [plot]}
+
+
+OFFICIAL_LENGTHS = (5, 15, 30, 45)
+
+
+def official_rows(trained, bench, x_mean, x_std, name: str) -> list:
+    """Interpolation and the model under the official LaFAN1 protocol (10 past frames, L2Q / L2P / NPSS at
+    5 / 15 / 30 / 45 frames); the model's errors are the mean over ``NUM_SAMPLES`` samples."""
+    from inbetween_jax.evaluation import official_baseline_table
+    from inbetween_jax.evaluation.lafan1 import official_errors
+    from inbetween_jax.models.scvae import infer
+    lengths = [n for n in OFFICIAL_LENGTHS if n <= trained.cfg.data.trans_max and N_PAST + n < bench.window]
+    rows = [r for r in official_baseline_table(bench, x_mean, x_std, lengths, N_PAST) if r["method"] != "Zero-velocity"]
+    for n in lengths:
+        s = infer.sample_transitions(trained.cfg.model, trained.state, bench, N_PAST, n, NUM_SAMPLES, velocity=True)
+        per = [official_errors(bench, N_PAST, n, q, r, x_mean, x_std) for q, r in zip(s["q"], s["r"])]
+        rows.append({"method": name, "frames": n, **{k: float(np.mean([p[k] for p in per])) for k in per[0]}})
+    return sorted(rows, key=lambda r: (r["frames"], r["method"] != "Slerp"))
 
 
 def per_frame_error(windows, n_past: int, n_trans: int, q, r) -> np.ndarray:
