@@ -15,5 +15,6 @@ INFILL_OPTIONS = {   # ``inbetween infill --model interaction``: dest -> (metava
     "b": ("FILE.bvh[:START]", "character B's context up to its start frame (default last frame)"),
     "key_a": ("FILE.bvh[:FRAME]", "A's keyframe (default last frame)"),
     "key_b": ("FILE.bvh[:FRAME]", "B's keyframe (default last frame)"),
-    "frames": ("N", "generated frames between the start frames and the keyframes"),
+    "frames": ("N", "generated frames between the start frames and the keyframes (models trained with "
+                    "model.tta, the default preset, arrive at the keyframes after N frames)"),
 }

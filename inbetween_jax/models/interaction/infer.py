@@ -66,16 +66,18 @@ def infill_features(trained: Trained, context, keyframes, frames: int, num_sampl
     """Roll the interaction network out for ``frames`` frames after two characters' context windows.
 
     context: (2, n_input, J, 9) world features (positions + forward/up of global rotations) of the frames
-    up to the start frame; keyframes: (2, J, 9) world features of the keyposes.  The network has no
-    time-to-arrival input: it is rolled out for exactly ceil(frames / n_pred) steps (no early stop) and the
-    first ``frames`` frames are kept.  Returns (S, 2, frames, J, 9) world features (float64).
+    up to the start frame; keyframes: (2, J, 9) world features of the keyposes.  It is rolled out for
+    exactly ceil(frames / n_pred) steps (no early stop) and the first ``frames`` frames are kept.  Models
+    with a time-to-arrival input (``model.tta`` / ``model.residual``) are told that the keyframe follows
+    frame ``frames``; the paper's model has none and only its output is cut.  Returns (S, 2, frames, J, 9)
+    world features (float64).
     """
     cfg, fa = trained.cfg, trained.forward_axis
     b = key_space_inputs(context, keyframes, fa, cfg.data.pos_scale)
     R, t = root_space(keyframes[:, 0], fa)                                      # key spaces -> world (file units)
     steps = -(-frames // cfg.data.n_pred)
     fn = jax.jit(lambda p, w, kp, rr, rt, k: sample_rollouts(p, w, kp, rr, rt, k, cfg, fa.astype(np.float32),
-                                                            steps, num_samples, threshold=-1.0)[0])
+                                                            steps, num_samples, threshold=-1.0, gap=frames)[0])
     out = np.asarray(fn(trained.params, b["x"], b["keypose"], b["rel_R"], b["rel_t"], jax.random.key(seed)),
                      np.float64)[:, 0, :, :frames]                               # (S, 2, frames, J, 9)
     out[..., :3] /= cfg.data.pos_scale

@@ -36,11 +36,12 @@ class ConvGCN(nnx.Module):
     """Conv1d over coefficients + GCN over joints.
 
     x (B, J, K, C) (or (B, J, C) with ``conv=False``), extra (B, J, E) or None ->
-    (features (B, J, H), out (B, J, O)).
+    (features (B, J, H), out (B, J, O)).  ``out_init``: the output layer's kernel initialiser (default
+    normal(1e-3); zeros for a residual head that starts at exactly zero).
     """
 
     def __init__(self, num_joints: int, K: int, C: int, E: int, H: int, O: int, conv_ch: int, n_gcn: int,
-                 *, conv: bool = True, rngs: nnx.Rngs):
+                 *, conv: bool = True, out_init=None, rngs: nnx.Rngs):
         self.conv = conv
         if conv:
             self.c1 = nnx.Conv(C, conv_ch, 3, rngs=rngs)
@@ -51,7 +52,7 @@ class ConvGCN(nnx.Module):
         self.proj = nnx.Linear(din, H, rngs=rngs)
         self.gcn = nnx.List([GraphConv(num_joints, H, H, rngs=rngs) for _ in range(n_gcn)])
         self.norms = nnx.List([nnx.LayerNorm(H, rngs=rngs) for _ in range(n_gcn)])
-        self.out = nnx.Linear(H, O, kernel_init=nnx.initializers.normal(1e-3), rngs=rngs)
+        self.out = nnx.Linear(H, O, kernel_init=out_init or nnx.initializers.normal(1e-3), rngs=rngs)
 
     def __call__(self, x, extra=None):
         B, J = x.shape[:2]

@@ -1,7 +1,7 @@
 """Loss terms of the interaction in-betweening model (Sec. 4.1.3 and 4.2), pure functions.
 
 Generator: ``L = w_mse MSE + w_coarse MSE_coarse + w_kl KL + w_refine L_refine + w_adv L_adv + w_pae L_pae``
-(:func:`generator_objective`); the refiner learns ``Refiner(pred) -> ground truth`` on the stop-gradient
+(:func:`generator_objective`; ``w_adv`` optionally warmed up late, :func:`adversarial_weight`); the refiner learns ``Refiner(pred) -> ground truth`` on the stop-gradient
 predictions, the periodic autoencoder reconstructs real pairwise-joint-distance (PJD) dynamics and the
 discriminator (:func:`discriminator_loss`) separates PAE latents of real and generated N = P * l frame PJD
 dynamics.  The parameter groups are disjoint and each only receives gradients of its own term.
@@ -16,7 +16,7 @@ from inbetween_jax.models.interaction.layers import pjd_dynamics
 from inbetween_jax.models.interaction.model import ar_predict, disc_logits, pae_reconstruct, refine
 
 __all__ = ["mse", "kl_divergence", "generator_adversarial", "discriminator_loss", "segments", "pair_pjd",
-           "scheduled_sampling_prob", "generator_objective", "discriminator_objective"]
+           "scheduled_sampling_prob", "adversarial_weight", "generator_objective", "discriminator_objective"]
 
 
 def mse(pred, target):
@@ -56,11 +56,19 @@ def scheduled_sampling_prob(step, cfg):
     return d.ss_max * jnp.minimum(1.0, step / max(d.ss_ramp_steps, 1))
 
 
+def adversarial_weight(step, cfg):
+    """``w_adv`` at ``step``: 0 before ``adv_start``, then a linear ramp over ``adv_ramp`` steps (at once if 0)."""
+    w = cfg.loss
+    if w.adv_ramp > 0:
+        return w.w_adv * jnp.clip((step - w.adv_start) / w.adv_ramp, 0.0, 1.0)
+    return w.w_adv * (step >= w.adv_start).astype(jnp.float32)
+
+
 def generator_objective(params, batch, key, cfg, forward_axis):
     """Total generator / refiner / PAE loss of a batch.
 
     params: ``{gen, ref, pae, disc}``; batch: ``x`` [B, 2, T + P*l, J, 9], ``keypose`` [B, 2, J, 9],
-    ``rel_R`` [B, 2, 3, 3], ``rel_t`` [B, 2, 3], ``step`` (float scalar).  Returns ``(total, (metrics, aux))``
+    ``rel_R`` [B, 2, 3, 3], ``rel_t`` [B, 2, 3], ``step`` (float scalar), ``tta`` [B] (timed models).  Returns ``(total, (metrics, aux))``
     with ``aux = {pjd_real, pjd_fake}`` ([B, N, C], for the discriminator; empty without the GAN).
     """
     sg = jax.lax.stop_gradient
@@ -87,7 +95,12 @@ def generator_objective(params, batch, key, cfg, forward_axis):
         adv = generator_adversarial(disc_logits(sg(params["pae"]), sg(params["disc"]), pjd_fake, cfg, J))
         recon, _, _ = pae_reconstruct(params["pae"], pjd_real, cfg, J)
         pae_loss = mse(recon, pjd_real)
-        total = total + w.w_adv * adv + w.w_pae * pae_loss
+        if w.adv_start > 0 or w.adv_ramp > 0:
+            w_adv = adversarial_weight(batch["step"], cfg)
+            metrics["w_adv"] = w_adv
+        else:
+            w_adv = w.w_adv
+        total = total + w_adv * adv + w.w_pae * pae_loss
         metrics.update(adv=adv, pae=pae_loss)
         aux = dict(pjd_real=pjd_real, pjd_fake=sg(pjd_fake))
     metrics["loss"] = total

@@ -30,8 +30,9 @@ from inbetween_jax.models.interaction.layers import (ConvGCN, Discriminator, FiL
                                                      reparameterize)
 
 __all__ = ["GROUPS", "Generator", "pjd_channels", "graphdefs", "init_params", "cross_space", "cross_space_inverse",
-           "generator_step", "refine", "pae_encode", "pae_reconstruct", "disc_logits", "keypose_distance",
-           "ar_predict", "rollout", "sample_rollouts"]
+           "extra_features", "tta_features", "lerp_to_keypose", "generator_step", "refine", "pae_encode",
+           "pae_reconstruct", "disc_logits", "keypose_distance", "ar_predict", "guess_gap", "rollout",
+           "sample_rollouts"]
 
 GROUPS = ("gen", "ref", "pae", "disc")
 
@@ -42,11 +43,38 @@ class Generator(nnx.Module):
     def __init__(self, num_joints: int, cfg, *, rngs: nnx.Rngs):
         m = cfg.model
         K, H = m.dct_coeffs, m.hidden
-        self.enc = ConvGCN(num_joints, K, 9, 9, H, K * 9, m.conv_channels, m.gcn_layers, rngs=rngs)
+        zero = dict(out_init=nnx.initializers.zeros) if m.residual else {}
+        self.enc = ConvGCN(num_joints, K, 9, extra_features(cfg), H, K * 9, m.conv_channels, m.gcn_layers,
+                           rngs=rngs, **zero)
         if m.interaction:
             self.rel_enc = ConvGCN(num_joints, K, 9, 0, H, 2 * m.latent, m.conv_channels, m.gcn_layers, rngs=rngs)
             self.film = FiLM(m.latent, H, rngs=rngs)
-        self.dec = ConvGCN(num_joints, K, 9, H, H, K * 9, m.conv_channels, m.gcn_layers, rngs=rngs)
+        self.dec = ConvGCN(num_joints, K, 9, H, H, K * 9, m.conv_channels, m.gcn_layers, rngs=rngs, **zero)
+
+
+TTA_FEATURES = 3
+
+
+def extra_features(cfg) -> int:
+    """Per-joint extra encoder input width: keypose (9) [+ offsets to it (9)] [+ time to arrival (3)]."""
+    m = cfg.model
+    return 9 + 9 * m.key_offsets + TTA_FEATURES * m.tta
+
+
+def tta_features(tta, n_pred: int):
+    """Time to arrival (B,) frames -> (B, 3): tta / 30 (clipped at 4), exp(-tta / 10), keyframe within this step."""
+    t = jnp.maximum(tta, 0.0)
+    return jnp.stack([jnp.minimum(t / 30.0, 4.0), jnp.exp(-t / 10.0), (t <= n_pred).astype(t.dtype)], -1)
+
+
+def lerp_to_keypose(last, keypose, tta, n: int):
+    """The residual base: n frames lerping from ``last`` (B, 2, J, 9) toward ``keypose`` (B, 2, J, 9), reaching
+    it ``tta`` (B,) frames after ``last`` and holding it afterwards: frame i (1..n) is
+    ``last + (keypose - last) min(1, i / tta)``.  -> (B, 2, n, J, 9)."""
+    i = jnp.arange(1, n + 1, dtype=last.dtype)
+    a = jnp.minimum(1.0, i[None] / jnp.maximum(tta, 1.0)[:, None])          # (B, n)
+    a = a[:, None, :, None, None]
+    return last[:, :, None] + (keypose - last)[:, :, None] * a
 
 
 def pjd_channels(num_joints: int, cfg) -> int:
@@ -129,23 +157,48 @@ def cross_space_inverse(rel, other, rel_R, rel_t, forward_axis):
     return apply_space(in_other, Rt[:, :, None], -jnp.einsum("...ij,...j->...i", Rt, rel_t)[:, :, None])
 
 
-def generator_step(gen_params, window, keypose, rel_R, rel_t, key, cfg, forward_axis):
+def generator_step(gen_params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, tta=None):
     """One prediction step for both characters.
 
     gen_params: ``params["gen"]``; window (B, 2, T, J, 9), keypose (B, 2, J, 9), rel_R (B, 2, 3, 3),
-    rel_t (B, 2, 3), key: PRNG key.  Returns dict: pred (B, 2, l, J, 9), coarse (B, 2, l, J, 9),
-    mu / logvar (B, 2, J, Z) (zeros (B, 2, J, 1) when interaction modelling is off).
+    rel_t (B, 2, 3), key: PRNG key; tta (B,) frames from the window's last frame to the keyframe (used with
+    ``model.tta`` / ``model.residual``; required with ``model.tta``).  Returns dict: pred (B, 2, l, J, 9),
+    coarse (B, 2, l, J, 9), mu / logvar (B, 2, J, Z) (zeros (B, 2, J, 1) when interaction modelling is off).
+
+    With ``model.residual`` the window is padded with :func:`lerp_to_keypose` (``tta`` frames, else
+    ``model.lerp_frames``) instead of its last frame, and the outputs are that padded window plus the network's
+    change of the truncated DCT (exactly the lerp while the zero-initialised output layers are zero).
     """
     m, d = cfg.model, cfg.data
     B, _, T, J, _ = window.shape
     gen = _module("gen", gen_params, cfg, J)
     L = T + d.n_pred
-    pad = jnp.concatenate([window, jnp.repeat(window[:, :, -1:], d.n_pred, axis=2)], axis=2)
+    last = window[:, :, -1]
+    if m.tta and tta is None:
+        raise ValueError("model.tta needs the time to arrival (tta) of every sample")
+    if m.residual:
+        reach = jnp.full((B,), float(m.lerp_frames), window.dtype) if tta is None else tta.astype(window.dtype)
+        base = lerp_to_keypose(last, keypose, reach, d.n_pred)
+    else:
+        base = jnp.repeat(window[:, :, -1:], d.n_pred, axis=2)
+    pad = jnp.concatenate([window, base], axis=2)
     c_in = _to_nodes(dct(pad, axis=2, num_coeffs=m.dct_coeffs))           # (2B, J, K, 9)
     K = c_in.shape[2]
-    h, res = gen.enc(c_in, keypose.reshape(2 * B, J, 9))
+    extra = [keypose]
+    if m.key_offsets:
+        extra.append(keypose - last)
+    if m.tta:
+        extra.append(jnp.broadcast_to(tta_features(tta.astype(window.dtype), d.n_pred)[:, None, None],
+                                      (B, 2, J, TTA_FEATURES)))
+    extra = jnp.concatenate(extra, -1)
+    h, res = gen.enc(c_in, extra.reshape(2 * B, J, -1))
     coarse_c = c_in + res.reshape(2 * B, J, K, 9)
-    coarse = idct(_from_nodes(coarse_c, B), n=L, axis=2)                   # (B, 2, L, J, 9)
+    if m.residual:
+        c_base = idct(_from_nodes(c_in, B), n=L, axis=2)
+        to_frames = lambda c: pad + (idct(_from_nodes(c, B), n=L, axis=2) - c_base)  # noqa: E731
+    else:
+        to_frames = lambda c: idct(_from_nodes(c, B), n=L, axis=2)  # noqa: E731
+    coarse = to_frames(coarse_c)                                            # (B, 2, L, J, 9)
     if m.interaction:
         rel = cross_space(coarse, rel_R, rel_t, forward_axis)
         _, ml = gen.rel_enc(_to_nodes(dct(rel, axis=2, num_coeffs=m.dct_coeffs)))
@@ -158,7 +211,7 @@ def generator_step(gen_params, window, keypose, rel_R, rel_t, key, cfg, forward_
         mu = logvar = jnp.zeros((B, 2, J, 1), window.dtype)
     _, res2 = gen.dec(coarse_c, h)
     final_c = coarse_c + res2.reshape(2 * B, J, K, 9)
-    final = idct(_from_nodes(final_c, B), n=L, axis=2)
+    final = to_frames(final_c)
     return dict(pred=final[:, :, T:], coarse=coarse[:, :, T:], mu=mu, logvar=logvar)
 
 
@@ -195,35 +248,49 @@ def ar_predict(gen_params, batch, key, cfg, forward_axis, p_pred):
     """Training autoregression: P = ``data.ar_steps`` steps with scheduled sampling (per-sample
     Bernoulli(p_pred) choice of the prediction over the ground truth as the next input).
 
-    batch: ``x`` (B, 2, T + P*l, J, 9), ``keypose``, ``rel_R``, ``rel_t``.  Returns preds / coarse
-    (B, 2, P*l, J, 9), mu, logvar (P, B, 2, J, Z).
+    batch: ``x`` (B, 2, T + P*l, J, 9), ``keypose``, ``rel_R``, ``rel_t`` and, for ``model.tta`` /
+    ``model.residual``, ``tta`` (B,) frames from the last input frame to the keyframe (step p gets
+    ``tta - p l``).  Returns preds / coarse (B, 2, P*l, J, 9), mu, logvar (P, B, 2, J, Z).
     """
     d, P = cfg.data, cfg.data.ar_steps
     T, l = d.n_input, d.n_pred
     x = batch["x"]
     B = x.shape[0]
     gt = jnp.moveaxis(x[:, :, T:T + P * l].reshape(x.shape[:2] + (P, l) + x.shape[3:]), 2, 0)
+    tta0 = batch.get("tta") if (cfg.model.tta or cfg.model.residual) else None
 
     def step(win, inp):
-        g, k = inp
+        g, k, p = inp
         k1, k2 = jax.random.split(k)
+        tta = None if tta0 is None else tta0 - p * l
         out = generator_step(gen_params, win, batch["keypose"], batch["rel_R"], batch["rel_t"], k1, cfg,
-                             forward_axis)
+                             forward_axis, tta)
         use = jax.random.bernoulli(k2, p_pred, (B, 1, 1, 1, 1))
         nxt = jnp.where(use, out["pred"], g)
         return jnp.concatenate([win[:, :, l:], nxt], axis=2), out
 
-    _, outs = jax.lax.scan(step, x[:, :, :T], (gt, jax.random.split(key, P)))
+    _, outs = jax.lax.scan(step, x[:, :, :T], (gt, jax.random.split(key, P), jnp.arange(P, dtype=jnp.float32)))
     cat = lambda a: jnp.moveaxis(a, 0, 2).reshape((B, 2, P * l) + a.shape[4:])  # noqa: E731
     return cat(outs["pred"]), cat(outs["coarse"]), outs["mu"], outs["logvar"]
 
 
+def guess_gap(last, keypose, cfg):
+    """A gap length (B,) for timing-conditioned models when none is given: the larger of the two characters'
+    mean joint distances to their keyposes (m) / ``model.tta_speed``, clipped to [l, ``model.max_frames``]."""
+    m = cfg.model
+    dist = jnp.max(keypose_distance(last, keypose), axis=1)
+    return jnp.clip(jnp.ceil(dist / m.tta_speed), cfg.data.n_pred, m.max_frames)
+
+
 def rollout(params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, num_steps: int, use_refiner=None,
-            threshold=None):
+            threshold=None, gap=None):
     """Inference autoregression with ``lax.scan`` over ``num_steps`` steps of l frames.
 
     Once both characters' mean joint distance to their keyposes is below ``threshold`` (model units) after
-    a step, the sample is done: later steps repeat its last frame.  Inputs as :func:`generator_step`.
+    a step, the sample is done: later steps repeat its last frame.  Inputs as :func:`generator_step`;
+    ``gap`` (scalar or (B,)): frames to generate before the keyframe, the time-to-arrival input of
+    ``model.tta`` / ``model.residual`` models (the keyframe is frame ``gap + 1`` after the window).  Without
+    it: ``num_steps * l`` when ``threshold < 0`` (a fixed-length rollout), else :func:`guess_gap`.
     Returns (frames (B, 2, num_steps * l, J, 9), length (B,) int32 = frames generated before stopping;
     ``num_steps * l`` when the threshold was never reached).
     """
@@ -231,10 +298,16 @@ def rollout(params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, num_s
     threshold = cfg.model.stop_threshold if threshold is None else threshold
     l = cfg.data.n_pred
     B = window.shape[0]
+    timed = cfg.model.tta or cfg.model.residual
+    if timed and gap is None:
+        gap = num_steps * l if threshold < 0 else guess_gap(window[:, :, -1], keypose, cfg)
+    tta0 = jnp.broadcast_to(jnp.asarray(gap, jnp.float32), (B,)) + 1.0 if timed else None
 
-    def step(carry, k):
+    def step(carry, inp):
         win, done, length = carry
-        out = generator_step(params["gen"], win, keypose, rel_R, rel_t, k, cfg, forward_axis)
+        k, p = inp
+        tta = None if tta0 is None else tta0 - p * l
+        out = generator_step(params["gen"], win, keypose, rel_R, rel_t, k, cfg, forward_axis, tta)
         pred = out["pred"]
         if use_refiner:
             pred = refine(params["ref"], pred, cfg)
@@ -246,7 +319,8 @@ def rollout(params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, num_s
         return (win, done | reached, length), pred
 
     init = (window, jnp.zeros((B,), bool), jnp.zeros((B,), jnp.int32))
-    (_, _, length), preds = jax.lax.scan(step, init, jax.random.split(key, num_steps))
+    steps = (jax.random.split(key, num_steps), jnp.arange(num_steps, dtype=jnp.float32))
+    (_, _, length), preds = jax.lax.scan(step, init, steps)
     frames = jnp.moveaxis(preds, 0, 2)                                      # (B, 2, S, l, J, 9)
     return frames.reshape(frames.shape[:2] + (num_steps * l,) + frames.shape[4:]), length
 

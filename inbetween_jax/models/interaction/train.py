@@ -2,7 +2,8 @@
 :func:`inbetween_jax.runner.train_model` / :func:`inbetween_jax.train.run_training`.
 
 Per step (Sec. 4.1.3 and 4.2): P autoregressive steps (``lax.scan``) with scheduled sampling, the generator /
-refiner / PAE objective (:func:`.losses.generator_objective`) and the discriminator loss on the PAE latents
+refiner / PAE objective (:func:`.losses.generator_objective`; batches from :func:`training_batch`: the
+paper's keyframe placement, or some keyframes inside the predicted frames with the keypose held after them) and the discriminator loss on the PAE latents
 of real and generated PJD dynamics.  The parameter groups are disjoint and every group only receives
 gradients of its own loss, so one Adam over all groups equals independent optimisers.
 
@@ -21,7 +22,7 @@ from inbetween_jax.models.interaction.model import init_params
 from inbetween_jax.models.spec import Training
 from inbetween_jax.train.optim import make_optimizer
 
-__all__ = ["BATCH_KEYS", "load_data", "init_state", "make_training"]
+__all__ = ["BATCH_KEYS", "load_data", "keyframe_index", "training_batch", "init_state", "make_training"]
 
 BATCH_KEYS = ("x", "keypose", "rel_R", "rel_t")
 
@@ -29,6 +30,52 @@ BATCH_KEYS = ("x", "keypose", "rel_R", "rel_t")
 def load_data(cfg, source, split: str = "train") -> PairSet:
     """The ``split`` pairs of ``source`` (real pairs, else constructed ones; see :mod:`.data`)."""
     return load_pair_set(source, split, cfg.data.pair_distance, cfg.data.split)
+
+
+def keyframe_index(x, keypose, tol: float = 1e-4):
+    """Index of the first frame of x (B, 2, L, J, 9) equal (to ``tol``) to the keypose (B, 2, J, 9) for both
+    characters -> (B,) int; L where no frame is."""
+    dist = np.abs(x - keypose[:, :, None]).max(axis=(1, 3, 4))                 # (B, L)
+    hit = dist < tol
+    return np.where(hit.any(1), hit.argmax(1), x.shape[2])
+
+
+def training_batch(pairs, rng: np.random.Generator, cfg) -> dict:
+    """A training batch of :data:`BATCH_KEYS` (numpy): ``x`` (B, 2, T + P*l, J, 9), ``keypose``, ``rel_R``,
+    ``rel_t``, and for timed models (``model.tta`` / ``model.residual``) or ``data.key_inside > 0``
+    ``tta`` (B,) float32 = keyframe index - T + 1 (frames from the last input frame to the keyframe).
+
+    With ``data.key_inside`` the last ``round(key_inside * B)`` samples have their keyframe inside the
+    predicted frames (index T + 1 .. T + P*l - 1); their frames after the keyframe are replaced by the
+    keypose, so the model learns to arrive and stay.  The other samples take the keyframe in
+    ``data.key_min .. key_max`` as the paper does.  Without those switches this is exactly one
+    :func:`.data.sample_batch` call.
+    """
+    d, m = cfg.data, cfg.model
+    T, N, B = d.n_input, d.ar_steps * d.n_pred, cfg.train.batch_size
+    n_in = int(round(d.key_inside * B))
+    if not (m.tta or m.residual or n_in):
+        b = sample_batch(pairs, rng, B, T + N, (d.key_min, d.key_max), d.mirror, d.pos_scale)
+        return {k: b[k] for k in BATCH_KEYS}
+    parts = []
+    if n_in < B:
+        parts.append(sample_batch(pairs, rng, B - n_in, max(T + N, d.key_max + 1), (d.key_min, d.key_max),
+                                  d.mirror, d.pos_scale))
+    if n_in:
+        parts.append(sample_batch(pairs, rng, n_in, T + N, (T + 1, T + N - 1), d.mirror, d.pos_scale))
+    out = {k: [] for k in BATCH_KEYS + ("tta",)}
+    for b in parts:
+        idx = keyframe_index(b["x"], b["keypose"])
+        if np.any(idx >= b["x"].shape[2]):
+            raise ValueError("a training window does not contain its keyframe")
+        x = b["x"][:, :, :T + N].copy()
+        after = np.arange(T + N)[None, :] >= idx[:, None]                      # (b, T + N)
+        x = np.where(after[:, None, :, None, None], b["keypose"][:, :, None], x)
+        out["x"].append(x)
+        out["tta"].append((idx - T + 1).astype(np.float32))
+        for k in ("keypose", "rel_R", "rel_t"):
+            out[k].append(b[k])
+    return {k: np.concatenate(v).astype(np.float32) for k, v in out.items()}
 
 
 def init_state(cfg, num_joints: int, key) -> dict:
@@ -66,8 +113,7 @@ def make_training(cfg, data: PairSet) -> Training:
 
     def batch_fn(step, key):
         rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).astype(np.uint32))
-        b = sample_batch(pairs, rng, cfg.train.batch_size, T + N, (d.key_min, d.key_max), d.mirror, d.pos_scale)
-        return {k: b[k] for k in BATCH_KEYS}
+        return training_batch(pairs, rng, cfg)
 
     kind = "constructed" if data.constructed else "real"
     meta = dict(skeleton=data.skeleton.to_dict(), fps=float(pairs[0].fps), stats={},

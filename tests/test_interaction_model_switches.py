@@ -1,0 +1,197 @@
+"""Interaction model switches beyond the paper (keyframes inside the predicted frames, offsets to the keypose,
+residual on a lerp, time to arrival, late adversarial term, full scheduled sampling) and the presets, on real
+clips: the shipped CMU mocap paired as two characters (constructed pairs)."""
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from inbetween_jax.models.interaction import data as idata
+from inbetween_jax.models.interaction import model as ia
+from inbetween_jax.models.interaction.config import DEFAULT_PRESET, get_config
+from inbetween_jax.models.interaction.infer import Trained, infill_features
+from inbetween_jax.models.interaction.losses import adversarial_weight, generator_objective, \
+    scheduled_sampling_prob
+from inbetween_jax.models.interaction.train import BATCH_KEYS, training_batch
+from inbetween_jax.train import apply_overrides
+
+TINY = get_config("tiny")
+TIMED = apply_overrides(TINY, ["model.residual=true", "model.tta=true", "model.key_offsets=true"])
+
+
+@pytest.fixture(scope="module")
+def train_pairs():
+    return idata.split_pairs(idata.load_pairs("embedded"), "train")
+
+
+@pytest.fixture(scope="module")
+def windows():
+    """20 context frames, a 30-frame gap and the keyframe, from the test pairs."""
+    return idata.eval_windows(idata.split_pairs(idata.load_pairs("embedded"), "test"), 20, 30, 10, max_windows=6)
+
+
+def test_presets_switches_off_in_paper_and_cpu_on_in_improved():
+    assert DEFAULT_PRESET == "improved"
+    for name in ("paper", "cpu"):
+        c = get_config(name)
+        assert (c.data.key_inside, c.model.key_offsets, c.model.residual, c.model.tta) == (0.0, False, False, False)
+        assert (c.loss.adv_start, c.loss.adv_ramp, c.data.ar_steps, c.data.ss_max) == (0, 0, 3, 0.5)
+    imp, cpu = get_config("improved"), get_config("cpu")
+    assert imp.data.key_inside > 0 and imp.model.key_offsets and imp.model.residual and imp.model.tta
+    assert imp.data.ss_max == 1.0 and imp.data.ar_steps > cpu.data.ar_steps and imp.loss.adv_start > 0
+    assert imp.model.pjd_frames == imp.data.ar_steps * imp.data.n_pred
+    assert imp.train == cpu.train
+    same = ("dct_coeffs", "conv_channels", "hidden", "gcn_layers", "latent", "refiner_hidden", "pae_hidden")
+    assert all(getattr(imp.model, k) == getattr(cpu.model, k) for k in same)
+
+
+def test_default_batch_is_one_sample_batch_call(train_pairs):
+    """Switches off: the batch is exactly the paper's sampling (same random stream, same arrays)."""
+    d = TINY.data
+    got = training_batch(train_pairs, np.random.default_rng(3), TINY)
+    ref = idata.sample_batch(train_pairs, np.random.default_rng(3), TINY.train.batch_size,
+                             d.n_input + d.ar_steps * d.n_pred, (d.key_min, d.key_max), d.mirror, d.pos_scale)
+    assert set(got) == set(BATCH_KEYS)
+    for k in BATCH_KEYS:
+        np.testing.assert_array_equal(got[k], ref[k])
+
+
+def test_key_inside_holds_the_keypose_after_the_keyframe(train_pairs):
+    cfg = apply_overrides(TINY, ["data.key_inside=0.5", "train.batch_size=8"])
+    T, N = cfg.data.n_input, cfg.data.ar_steps * cfg.data.n_pred
+    b = training_batch(train_pairs, np.random.default_rng(0), cfg)
+    tta = b["tta"].astype(int)
+    assert np.all(tta[:4] > N) and np.all((tta[4:] >= 2) & (tta[4:] <= N))       # 4 outside, 4 inside
+    for i in range(4, 8):
+        k = T + tta[i] - 1                                                         # keyframe index in x
+        held = b["x"][i, :, k:]
+        np.testing.assert_array_equal(held, np.broadcast_to(b["keypose"][i][:, None], held.shape))
+        assert np.abs(b["x"][i, :, k - 1] - b["keypose"][i]).max() > 1e-3           # real motion before it
+    # without key_inside but timed: every keyframe stays where the paper puts it (beyond the predicted frames)
+    b = training_batch(train_pairs, np.random.default_rng(0), TIMED)
+    assert np.all(b["tta"] > N) and np.all(b["tta"] <= cfg.data.key_max - T + 1)
+
+
+def _inputs(windows, cfg, gap):
+    J = windows["x"].shape[3]
+    params = ia.init_params(jax.random.key(0), cfg, J)
+    w = jnp.asarray(windows["x"][:, :, :20])
+    tta = jnp.full((w.shape[0],), gap + 1.0)
+    return params, w, tta
+
+
+def test_residual_untrained_model_returns_the_lerp_exactly(windows, train_pairs):
+    fa = train_pairs[0].forward_axis.astype(np.float32)
+    for cfg, tta_given in ((TIMED, True), (apply_overrides(TINY, ["model.residual=true"]), False)):
+        params, w, tta = _inputs(windows, cfg, 30)
+        out = ia.generator_step(params["gen"], w, windows["keypose"], windows["rel_R"], windows["rel_t"],
+                                jax.random.key(1), cfg, fa, tta if tta_given else None)
+        reach = tta if tta_given else jnp.full_like(tta, cfg.model.lerp_frames)
+        lerp = ia.lerp_to_keypose(w[:, :, -1], jnp.asarray(windows["keypose"]), reach, cfg.data.n_pred)
+        np.testing.assert_array_equal(np.asarray(out["pred"]), np.asarray(lerp))
+        np.testing.assert_array_equal(np.asarray(out["coarse"]), np.asarray(lerp))
+        assert np.abs(np.asarray(lerp[:, :, -1] - w[:, :, -1])).max() > 1e-2    # it does move
+    # the paper's head is not a lerp
+    params, w, _ = _inputs(windows, TINY, 30)
+    out = ia.generator_step(params["gen"], w, windows["keypose"], windows["rel_R"], windows["rel_t"],
+                            jax.random.key(1), TINY, fa)
+    lerp = ia.lerp_to_keypose(w[:, :, -1], jnp.asarray(windows["keypose"]), jnp.full((w.shape[0],), 31.0), 10)
+    assert not np.allclose(np.asarray(out["pred"]), np.asarray(lerp), atol=1e-3)
+
+
+def test_untrained_timed_model_arrives_and_honours_the_gap(windows, train_pairs):
+    """The stop rule fires for the residual / tta model within 2x the gap; the gap changes the motion."""
+    fa = train_pairs[0].forward_axis.astype(np.float32)
+    params, w, _ = _inputs(windows, TIMED, 30)
+    kp, R, t = windows["keypose"], windows["rel_R"], windows["rel_t"]
+    run = jax.jit(lambda g: ia.rollout(params, w, kp, R, t, jax.random.key(2), TIMED, fa, 6, gap=g))
+    frames, length = run(30)
+    assert np.all(np.asarray(length) <= 30)                           # at the latest after the gap (2x allowed)
+    full, _ = ia.rollout(params, w, kp, R, t, jax.random.key(2), TIMED, fa, 3, threshold=-1.0, gap=30)
+    d = np.asarray(ia.keypose_distance(full[:, :, 29], kp)).max(1)
+    assert np.all(d < 0.2 * TIMED.model.stop_threshold)               # 1/31 of the way left at frame 30
+    late, length = run(50)
+    assert np.all(np.asarray(length) <= 50)
+    assert np.abs(np.asarray(late[:, :, 9] - frames[:, :, 9])).max() > 1e-2     # slower when given more time
+
+
+def test_key_offsets_are_an_input(windows, train_pairs):
+    fa = train_pairs[0].forward_axis.astype(np.float32)
+    cfg = apply_overrides(TINY, ["model.key_offsets=true"])
+    params, w, _ = _inputs(windows, cfg, 30)
+    k = params["gen"]["enc"]["proj"]["kernel"]
+    base = ia.init_params(jax.random.key(0), TINY, w.shape[3])["gen"]["enc"]["proj"]["kernel"]
+    assert k.shape[0] == base.shape[0] + 9 and ia.extra_features(cfg) == 18
+    step = lambda p: ia.generator_step(p["gen"], w, windows["keypose"], windows["rel_R"], windows["rel_t"],  # noqa
+                                       jax.random.key(1), cfg, fa)["pred"]
+    zeroed = jax.tree.map(lambda a: a, params)
+    zeroed["gen"]["enc"]["proj"]["kernel"] = k.at[-9:].set(0.0)                  # the offset rows
+    assert np.abs(np.asarray(step(params) - step(zeroed))).max() > 1e-6
+
+
+def test_tta_input_changes_the_prediction_and_is_required(windows, train_pairs):
+    fa = train_pairs[0].forward_axis.astype(np.float32)
+    cfg = apply_overrides(TINY, ["model.tta=true"])
+    params, w, tta = _inputs(windows, cfg, 30)
+    args = (w, windows["keypose"], windows["rel_R"], windows["rel_t"], jax.random.key(1), cfg, fa)
+    a = ia.generator_step(params["gen"], *args, tta)["pred"]
+    b = ia.generator_step(params["gen"], *args, tta - 25.0)["pred"]
+    assert np.abs(np.asarray(a - b)).max() > 1e-6
+    with pytest.raises(ValueError, match="tta"):
+        ia.generator_step(params["gen"], *args)
+
+
+def test_adversarial_weight_warms_up_late(train_pairs):
+    np.testing.assert_allclose(float(adversarial_weight(jnp.float32(0.0), TINY)), TINY.loss.w_adv, rtol=1e-6)
+    cfg = apply_overrides(TINY, ["loss.adv_start=100", "loss.adv_ramp=50", "data.ss_max=0.0"])
+    w = [float(adversarial_weight(jnp.float32(s), cfg)) for s in (0, 99, 100, 125, 150, 1000)]
+    np.testing.assert_allclose(w, np.array([0, 0, 0, 0.5, 1, 1]) * cfg.loss.w_adv, rtol=1e-6)
+    off = apply_overrides(TINY, ["loss.adv_start=100", "data.ss_max=0.0"])
+    np.testing.assert_allclose([float(adversarial_weight(jnp.float32(s), off)) for s in (99, 100)],
+                               [0.0, off.loss.w_adv], rtol=1e-6)
+    # in the objective: the total changes by exactly w_adv * adv between before and after the warm-up
+    b = training_batch(train_pairs, np.random.default_rng(1), cfg)
+    params = ia.init_params(jax.random.key(0), cfg, b["x"].shape[3])
+    fa = train_pairs[0].forward_axis.astype(np.float32)
+    (t0, (m0, _)), (t1, (m1, _)) = [generator_objective(params, dict(b, step=jnp.float32(s)), jax.random.key(0),
+                                                        cfg, fa) for s in (0, 500)]
+    assert float(m0["adv"]) > 0 and float(m0["w_adv"]) == 0.0
+    np.testing.assert_allclose(float(t1 - t0), cfg.loss.w_adv * float(m1["adv"]), rtol=1e-3)
+
+
+def test_full_scheduled_sampling_and_more_steps(train_pairs):
+    """ss_max = 1 ends in full feedback: the predictions no longer depend on the ground truth after the context."""
+    cfg = apply_overrides(TINY, ["data.ar_steps=5", "model.pjd_frames=50", "data.ss_max=1.0",
+                                 "data.key_min=71", "data.key_max=80"])
+    assert float(scheduled_sampling_prob(jnp.float32(10 ** 6), cfg)) == 1.0
+    b = training_batch(train_pairs, np.random.default_rng(2), cfg)
+    assert b["x"].shape[2] == 20 + 50
+    params = ia.init_params(jax.random.key(0), cfg, b["x"].shape[3])
+    fa = train_pairs[0].forward_axis.astype(np.float32)
+    run = lambda x, p: ia.ar_predict(params["gen"], dict(b, x=x), jax.random.key(4), cfg, fa, p)[0]  # noqa
+    x2 = b["x"].copy()
+    x2[:, :, 20:] += 0.5
+    pred = run(b["x"], 1.0)
+    assert pred.shape == (b["x"].shape[0], 2, 50) + b["x"].shape[3:]
+    np.testing.assert_array_equal(np.asarray(pred), np.asarray(run(x2, 1.0)))
+    assert not np.allclose(np.asarray(run(b["x"], 0.0)), np.asarray(run(x2, 0.0)))
+
+
+def test_infill_honours_frames_with_tta(windows, train_pairs):
+    """``--frames N``: an untrained residual / tta model is at the keypose after N frames, for two N."""
+    fa = np.asarray(train_pairs[0].forward_axis, np.float64)
+    J = windows["x"].shape[3]
+    cfg = dataclasses.replace(TIMED, model=dataclasses.replace(TIMED.model, refiner=False))
+    trained = Trained(cfg, ia.init_params(jax.random.key(0), cfg, J), J, fa, None, 0, "")
+    pair = train_pairs[3]
+    context, key = pair.feats[:, 10:30].astype(np.float64), pair.feats[:, 60].astype(np.float64)
+    for n in (12, 25):
+        out = infill_features(trained, context, key, n, 1)
+        assert out.shape == (1, 2, n, J, 9)
+        gap_cm = np.linalg.norm(out[0, :, -1, :, :3] - key[..., :3], axis=-1).mean()
+        step_cm = np.linalg.norm(out[0, :, -2, :, :3] - out[0, :, -1, :, :3], axis=-1).mean()
+        assert gap_cm < 1.5 * step_cm, (n, gap_cm, step_cm)                      # one lerp step from the key
