@@ -241,3 +241,94 @@ def test_position_error_and_bone_spread_match_numpy(motion):
     np.testing.assert_allclose(float(b["gt_std"]), np.mean(gb.std(0)), atol=1e-4)   # ~0: FK keeps the bones
     np.testing.assert_allclose(float(b["iqr"]), np.mean(np.subtract(*np.percentile(pb, [75, 25], 0))), rtol=1e-4)
     assert float(b["gt_std"]) < 1e-3 and float(b["std"]) > 0.1       # noise spreads the bone lengths
+
+
+# ----------------------------------------------------------------------------- departures from the paper (switches)
+def _clips(motion, n=2, length=240):
+    """(n, D, length) normalised clip images of a real motion."""
+    f = cf.body_frame_features(motion).features
+    f = (f - f.mean(0)) / (f.std(0) + 1e-3)
+    return np.stack([f[i * 120:i * 120 + length].T for i in range(n)]).astype(np.float32)
+
+
+def _real_masks(x, j):
+    """A centred 60-frame gap, a clip with 2 joints missing and 20 % joint dropout on top."""
+    n, _, t = x.shape
+    m = cm.frame_mask_image(np.broadcast_to(cm.gap_frames(t, [(90, 150)]), (n, t)), j)
+    m[1] = cm.joints_mask(t, j, [4, 9])
+    return m * cm.dropout_mask(np.random.default_rng(0), (n, t), j, 0.2)
+
+
+def test_linear_prefill_matches_baseline(motion):
+    x = _clips(motion)
+    m = _real_masks(x, motion.skeleton.num_joints)
+    got = np.asarray(cm.linear_prefill(x * m, m))
+    np.testing.assert_allclose(got, linear_fill(x * m, m), atol=1e-5)
+    assert np.array_equal(got[m > 0.5], x[m > 0.5])                     # known entries bit for bit
+    m2 = m.copy()
+    m2[0, 3] = 0                                                        # a row with nothing known -> 0
+    assert np.all(np.asarray(cm.linear_prefill(x * m2, m2))[0, 3] == 0)
+
+
+@pytest.mark.parametrize("variant", ["cae", "vanilla", "holden1d"])
+def test_residual_untrained_is_linear_fill(motion, variant):
+    """model.residual: the untrained model returns linear fill in the gap and the input elsewhere, exactly;
+    switched off, the same init returns something else."""
+    x = _clips(motion)
+    j = motion.skeleton.num_joints
+    m = _real_masks(x, j)
+    cfg = apply_overrides(_cfg(variant), ["model.residual=true"])
+    p = cae.init_params(jax.random.key(0), cfg, x.shape[1])
+    y = np.asarray(cae.apply(p, jnp.asarray(x * m), cfg, jnp.asarray(m)))
+    assert np.array_equal(y, np.asarray(cm.linear_prefill(x * m, m)))
+    assert np.array_equal(y[m > 0.5], x[m > 0.5])
+    np.testing.assert_allclose(y, linear_fill(x * m, m), atol=1e-5)
+    plain = _cfg(variant)
+    y0 = np.asarray(cae.apply(cae.init_params(jax.random.key(0), plain, x.shape[1]), jnp.asarray(x * m), plain))
+    assert np.abs(y0 - y)[m < 0.5].mean() > 0.1
+    # a trained-looking (non-zero) output layer moves the gap but paste_known keeps the known entries
+    p2 = jax.tree.map(lambda a: a + 0.01, p)
+    pasted = apply_overrides(cfg, ["model.paste_known=true"])
+    y2 = np.asarray(cae.apply(p2, jnp.asarray(x * m), pasted, jnp.asarray(m)))
+    y3 = np.asarray(cae.apply(p2, jnp.asarray(x * m), cfg, jnp.asarray(m)))
+    assert np.array_equal(y2[m > 0.5], x[m > 0.5]) and not np.array_equal(y3[m > 0.5], x[m > 0.5])
+    np.testing.assert_array_equal(y2[m < 0.5], y3[m < 0.5])
+
+
+def test_gap_weight_loss():
+    from inbetween_jax.models.cae.losses import l1_loss, weighted_l1
+    pred, target = jnp.zeros((1, 2, 4)), jnp.array([[[1.0, 1.0, 3.0, 3.0], [1.0, 1.0, 1.0, 1.0]]])
+    mask = jnp.array([[[1.0, 1.0, 0.0, 0.0], [1.0, 1.0, 1.0, 1.0]]])   # two missing entries, error 3 each
+    assert float(weighted_l1(pred, target, mask, 1.0)) == float(l1_loss(pred, target)) == pytest.approx(1.5)
+    assert float(weighted_l1(pred, target, mask, 4.0)) == pytest.approx((6 * 1 + 2 * 4 * 3) / (6 + 2 * 4))
+
+
+def test_eval_matched_gap_lengths():
+    lam = np.asarray(cm.matched_gap_lengths(jax.random.key(0), 6000, (30, 60, 120), 0.25))
+    which = np.select([lam <= 37.5, lam <= 75], [0, 1], 2)
+    assert np.all(np.abs(np.bincount(which) / 6000 - 1 / 3) < 0.03)
+    for k, c in enumerate((30, 60, 120)):
+        part = lam[which == k]
+        assert part.min() >= 0.75 * c - 0.5 and part.max() <= 1.25 * c + 0.5 and abs(part.mean() - c) < 0.03 * c
+    # gap_mask: matched draws replace N(mu, sigma) where the flag is on
+    _, l1 = cm.gap_mask(jax.random.key(1), 3000, 240, 120.0, 20.0, matched=1.0)
+    _, l0 = cm.gap_mask(jax.random.key(1), 3000, 240, 120.0, 20.0, matched=0.0)
+    assert abs(float(np.mean(l0)) - 120) < 2 and abs(float(np.mean(l1)) - 70) < 3
+    assert cm.curriculum_end_epoch(10, 120, 10, 5) == 55 and cm.curriculum_mu(55) == 120.0
+    assert cm.curriculum_end_epoch(30, 120, 30, 2) == 6 and cm.curriculum_mu(5, 30, 120, 30, 2) < 120
+
+
+def test_presets_improved_matches_cpu_budget():
+    from inbetween_jax.models.cae.config import DEFAULT_PRESET, PRESETS
+    from inbetween_jax.train.optim import learning_rate
+    cpu, imp, paper = get_config("cpu"), get_config("improved"), get_config("paper")
+    assert DEFAULT_PRESET == "improved" and set(PRESETS) == {"paper", "cpu", "improved", "tiny"}
+    assert (imp.model.channels, imp.train.batch_size, imp.train.num_steps, imp.data.steps_per_epoch) == \
+        (cpu.model.channels, cpu.train.batch_size, cpu.train.num_steps, cpu.data.steps_per_epoch)
+    for c in (cpu, paper):
+        assert not (c.model.residual or c.model.paste_known or c.data.mask.eval_matched)
+        assert c.loss.gap_weight == 1.0 and c.train.lr_schedule == "constant" and learning_rate(c.train) == 1e-3
+    assert imp.model.residual and imp.model.paste_known and imp.data.mask.eval_matched and imp.loss.gap_weight > 1
+    sched = learning_rate(imp.train)
+    assert float(sched(imp.train.warmup_steps)) == pytest.approx(1e-3)
+    assert float(sched(imp.train.num_steps)) == pytest.approx(1e-3 * imp.train.lr_final)

@@ -68,6 +68,37 @@ def test_make_training_pieces_and_meta():
     assert set(metrics) == {"loss", "hole_l1", "mu"} and all(np.isfinite(float(v)) for v in metrics.values())
 
 
+def test_improved_switches_in_training():
+    """The improved switches on real clips: evaluation-matched gaps switch on at the curriculum's end, the
+    untrained residual model's loss is the linear fill's, and gap_weight changes the loss of the same batch."""
+    from inbetween_jax.baselines import linear_fill
+    from inbetween_jax.models.cae.losses import weighted_l1
+    from inbetween_jax.models.cae.masks import training_mask
+    cfg = apply_overrides(get_config("improved"), ["model.channels=4,4,8,8,8", "data.max_motions=2",
+                                                   "data.clip_length=64", "train.batch_size=4"])
+    tr = make_training(cfg, load_data(cfg, "embedded"))
+    assert tr.meta["extra"]["steps_per_epoch"] == 20
+    flags = [float(tr.batch_fn(s, jax.random.key(1))["matched"]) for s in (0, 119, 120, 1599)]
+    assert flags == [0.0, 0.0, 1.0, 1.0]                                # curriculum 30..120 ends at epoch 6
+    assert float(make_training(get_config("tiny"), load_data(get_config("tiny"), "embedded"))
+                 .batch_fn(10 ** 4, jax.random.key(1))["matched"]) == 0.0
+    b = tr.batch_fn(200, jax.random.key(1))
+    state = tr.init_fn(jax.random.key(0))
+    _, metrics = jax.jit(tr.step_fn)(state, b, jax.random.key(2))
+    # the same mask as the step draws: the untrained model's loss is linear fill's weighted L1
+    x = np.asarray(b["x"])
+    assert x.shape == (4, 66, 64)
+    mask = np.asarray(training_mask(jax.random.key(2), 4, 21, 64, b["mu"], cfg.data.mask.sigma, cfg.data.mask.p_joint,
+                                    cfg.data.mask.max_joints, b["matched"], (30, 60, 120), 0.25))
+    want = float(weighted_l1(linear_fill(x * mask, mask), x, mask, cfg.loss.gap_weight))
+    assert float(metrics["loss"]) == pytest.approx(want, rel=1e-5)
+    plain = make_training(apply_overrides(cfg, ["loss.gap_weight=1"]), load_data(cfg, "embedded"))
+    _, m1 = jax.jit(plain.step_fn)(state, b, jax.random.key(2))
+    want1 = float(weighted_l1(linear_fill(x * mask, mask), x, mask, 1.0))
+    assert float(m1["loss"]) == pytest.approx(want1, rel=1e-5) and abs(want1 - want) > 0.05 * want
+    assert float(m1["hole_l1"]) == pytest.approx(float(metrics["hole_l1"]), rel=1e-6)
+
+
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):
     run = tmp_path_factory.mktemp("cae") / "run"
@@ -143,9 +174,17 @@ def test_bench_quick_runs(tmp_path):
     runs = tmp_path / "runs" / "cae"
     for variant in ("holden1d", "vanilla", "cae"):
         _train(runs / variant, [f"model.variant={variant}", "train.num_steps=3"])
+    _train(runs / "improved", ["model.residual=true", "model.paste_known=true", "train.num_steps=1"])
     r = bench.run("embedded", str(tmp_path / "results"), str(runs), quick=True)
-    assert set(r["runs"]) == {"holden1d", "vanilla", "cae"} and r["steps"] == {"holden1d": 3, "vanilla": 3, "cae": 3}
-    assert set(r["table1"]) == {"linear", "holden1d", "vanilla", "cae"}
+    assert r["steps"] == {"holden1d": 3, "vanilla": 3, "cae": 3, "cae_residual": 1}
+    assert set(r["table1"]) == {"linear", "holden1d", "vanilla", "cae", "cae_residual"}
+    tm = r["time_matched"]
+    assert [v["frames"] for v in tm["linear"]["gaps"].values()] == [30, 60, 120] and tm["linear"]["recon"] is None
+    assert tm["cae_residual"]["recon"][0] == 0.0                         # known entries pasted back
+    assert tm["cae"]["gaps"][2]["err"] == pytest.approx(r["table1"]["cae"][1])
+    ratio = [x for x in r["rows"] if x["table"] == "cae_time_matched" and x["variant"] == "cae_residual"
+             and x["frames"] == 30 and x["metric"] == "ratio_to_linear"]
+    assert len(ratio) == 1 and 0.5 < ratio[0]["value"] < 1.5 and "Time-matched gaps" in r["markdown"]
     assert r["table1"]["linear"][0] is None and all(len(v) == 3 for v in r["table1"].values())
     assert set(r["table2"]["cae"]) == {"sigma=1.0", "sigma=1.5", "p=0.3", "p=0.5"}
     assert set(r["bones"]) == {"holden1d", "vanilla", "cae"}

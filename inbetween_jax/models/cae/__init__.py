@@ -3,14 +3,14 @@ for Human Motion Infilling", 3DV 2020): a motion clip is an image of feature row
 positions + root velocities) by frames; a fully convolutional AE fills gaps, removes noise and recovers
 missing joints.  Baseline networks: the paper's Vanilla AE and a Holden-style 1D conv AE (``model.variant``).
 
-config.py    presets paper / cpu / tiny: Config(model, data (incl. data.mask), loss, train)
+config.py    presets paper / cpu / improved (default) / tiny: Config(model, data (incl. data.mask), loss, train)
 features.py  motion <-> clip rows (facing yaw, root velocity integration), normaliser, clip bank
 masks.py     training masks + gap curriculum (jnp), evaluation / inference masks and noise (NumPy)
-model.py     init_params / apply (CAE, Vanilla AE, Holden 1D AE) on plain nested-dict parameters
-losses.py    L1 over the whole clip (training loss), L1 over the removed entries (logged)
+model.py     init_params / apply (CAE, Vanilla AE, Holden 1D AE; optional residual over linear fill)
+losses.py    L1 over the whole clip (gap-weighted with loss.gap_weight), L1 over the removed entries (logged)
 train.py     load_data, make_training
 infer.py     load(run), fill, process_motion (fill a user's motion, refit rotations), infill (CLI)
-bench.py     the paper's Tables 1 / 2 (protocol: inbetween_jax.evaluation.infilling)
+bench.py     the paper's Tables 1 / 2 + time-matched 1 s / 2 s / 4 s gaps (protocol: inbetween_jax.evaluation.infilling)
 """
 
 INFILL_OPTIONS = {   # ``inbetween infill --model cae``: dest -> (metavar, help)

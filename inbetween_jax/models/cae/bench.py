@@ -1,9 +1,12 @@
 """CAE benchmark: the paper's Table 1 (reconstruction / 60 / 120-frame gaps) and Table 2 (de-noising) for
-linear interpolation, the Holden-style 1D-conv AE, the Vanilla AE and the CAE, plus bone-length spread.
+linear interpolation, the Holden-style 1D-conv AE, the Vanilla AE and the CAE, plus bone-length spread, and
+a time-matched table: reconstruction (no gap) and 1 s / 2 s / 4 s gaps (30 / 60 / 120 frames at 30 Hz), each
+gap also as a ratio to linear fill.
 
-``run(source, results_dir, run_dir, quick)``: ``run_dir`` is a CAE run folder or a folder of run folders
-(e.g. ``runs/cae`` holding ``cae/``, ``vanilla/``, ``holden1d/``); every CAE run found is evaluated, one per
-``model.variant`` (the first in name order).  The protocol is :mod:`inbetween_jax.evaluation.infilling`;
+``run(source, results_dir, run_dir, quick)``: ``run_dir`` is a CAE run folder, a folder of run folders
+(e.g. ``runs/cae`` holding ``cae/``, ``vanilla/``, ``holden1d/``) or both (a run folder whose sub-folders
+are runs); every CAE run found is evaluated, one per method key: ``model.variant``, plus ``_residual`` for
+a run with ``model.residual`` (``cae_residual``: the ``improved`` preset) -- the first in name order.  The protocol is :mod:`inbetween_jax.evaluation.infilling`;
 ``quick`` evaluates the first 8 test clips only.  Writes ``cae_bench.json`` / ``cae_bench.md`` under
 ``results_dir``.
 """
@@ -13,19 +16,24 @@ import json
 import os
 import time
 
+import numpy as np
+
 LABELS = {"linear": "Linear interpolation", "holden1d": "Holden-style 1D conv AE (60)",
-          "vanilla": "Vanilla AE (60)", "cae": "CAE (ours)"}
+          "vanilla": "Vanilla AE (60)", "cae": "CAE (ours)", "holden1d_residual": "Holden-style 1D AE, residual",
+          "vanilla_residual": "Vanilla AE, residual", "cae_residual": "CAE, residual (improved)"}
 PAPER_T1 = {"linear": ("n/a", "10.45 (± 15.5)", "17.04 (± 24.4)"), "holden1d": ("4.44 (± 6.5)", "15.28 (± 19.1)",
             "18.26 (± 24.5)"), "vanilla": ("2.79 (± 6.7)", "7.45 (± 11.7)", "13.61 (± 21.6)"),
             "cae": ("2.75 (± 5.2)", "5.47 (± 8.6)", "7.00 (± 10.6)")}
-VARIANT_ORDER = ("holden1d", "vanilla", "cae")
-TRAIN_HINT = "inbetween train cae --preset cpu --run-dir runs/cae/<variant> [model.variant=vanilla|holden1d]"
+VARIANT_ORDER = ("holden1d", "vanilla", "cae", "holden1d_residual", "vanilla_residual", "cae_residual")
+SECONDS = (1, 2, 4)   # time-matched gaps
+TRAIN_HINT = "inbetween train cae --run-dir runs/cae [--preset cpu model.variant=vanilla|holden1d]"
 
 __all__ = ["find_runs", "run"]
 
 
 def find_runs(run_dir: str | None) -> dict:
-    """``{variant: Run}`` of the CAE runs (with a checkpoint) in ``run_dir`` or its sub-folders."""
+    """``{method key: Run}`` of the CAE runs (with a checkpoint) in ``run_dir`` or its sub-folders; the key
+    is the run's ``model.variant``, with ``_residual`` appended when ``model.residual`` is on."""
     from inbetween_jax.train.run import RunError, load_run
     if not run_dir or not os.path.isdir(run_dir):
         return {}
@@ -38,7 +46,8 @@ def find_runs(run_dir: str | None) -> dict:
         except RunError:
             continue
         if r.model == "cae":
-            runs.setdefault(r.config.get("model", {}).get("variant", "cae"), r)
+            m = r.config.get("model", {})
+            runs.setdefault(m.get("variant", "cae") + ("_residual" if m.get("residual") else ""), r)
     return runs
 
 
@@ -83,6 +92,7 @@ def run(source: str | None, results_dir: str, run_dir: str | None, quick: bool =
         tables[meth] = proto.evaluate_method(predict, x, corrupt, norm, j, ref.skeleton.parents,
                                              learned=meth != "linear")
     fps = float(motions[0].fps)
+    timed = {meth: _time_matched(models.get(meth), x, norm, j, fps, tables[meth]["table1"][0]) for meth in methods}
     result = {"source": src, "note": "trained checkpoints", "runs": {v: r.run_dir for v, r in runs.items()},
               "num_clips": int(x.shape[0]), "clip_length": int(x.shape[2]), "fps": fps,
               "test_files": [os.path.basename(m.source) for m in motions],
@@ -90,6 +100,7 @@ def run(source: str | None, results_dir: str, run_dir: str | None, quick: bool =
               "table1": {m: tables[m]["table1"] for m in methods},
               "table1_seconds": {m: tables[m]["table1_seconds"] for m in methods},
               "table2": {m: tables[m]["table2"] for m in methods},
+              "time_matched": timed,
               "bones": {m: tables[m]["bones"] for m in methods if tables[m]["bones"] is not None},
               "wall_s": time.time() - t0}
     result["rows"] = _rows(result, methods, _data_name(src))
@@ -102,6 +113,27 @@ def run(source: str | None, results_dir: str, run_dir: str | None, quick: bool =
     return result
 
 
+def _time_matched(model, x, norm, num_joints: int, fps: float, recon) -> dict:
+    """``{"recon": (mean, std) or None, "gaps": {seconds: {"frames", "err": (mean, std)}}}``: one centred gap
+    of round(s * fps) frames (skipped when it does not fit the clip); ``model`` None: linear fill."""
+    from inbetween_jax.baselines import linear_fill
+    from inbetween_jax.evaluation.infilling import position_error
+    from inbetween_jax.models.cae.infer import fill
+    from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
+    n, _, t = x.shape
+    gaps = {}
+    for sec in SECONDS:
+        g = int(round(sec * fps))
+        if g >= t:
+            continue
+        a = (t - g) // 2
+        fm = np.broadcast_to(gap_frames(t, [(a, a + g)]), (n, t))
+        mask = frame_mask_image(fm, num_joints)
+        pred = linear_fill(x * mask, mask) if model is None else fill(model, x, mask)
+        gaps[sec] = {"frames": g, "err": position_error(pred, x, norm, num_joints, frames=1.0 - fm)}
+    return {"recon": recon, "gaps": gaps}
+
+
 def _rows(r, methods, data) -> list:
     """Flat records: tables ``cae_table1`` (frames, gap_s), ``cae_table2`` (corruption), ``cae_bones``."""
     from inbetween_jax.evaluation import flat_rows
@@ -111,9 +143,14 @@ def _rows(r, methods, data) -> list:
         model = None if m == "linear" else "cae"
         gaps = {g: ms for g, ms in zip(GAPS, r["table1"][m])}
         gaps.update({g: ms for g, ms in zip(GAPS_SECONDS, r["table1_seconds"][m])})
+        gaps.update({v["frames"]: v["err"] for v in r["time_matched"][m]["gaps"].values()})
         t1 = [{"method": m, "frames": g, "gap_s": round(g / r["fps"], 3), "mpjpe_cm": ms[0], "mpjpe_std_cm": ms[1]}
               for g, ms in sorted(gaps.items()) if ms is not None]
         out += flat_rows(t1, "cae_table1", data, model, keys=("frames", "gap_s"))
+        lin = r["time_matched"]["linear"]["gaps"]
+        tm = [{"method": m, "frames": v["frames"], "gap_s": float(s), "ratio_to_linear": v["err"][0] / lin[s]["err"][0]}
+              for s, v in r["time_matched"][m]["gaps"].items() if m != "linear"]
+        out += flat_rows(tm, "cae_time_matched", data, model, keys=("frames", "gap_s"))
         t2 = [{"method": m, "corruption": k, "mpjpe_cm": ms[0], "mpjpe_std_cm": ms[1]}
               for k, ms in r["table2"][m].items()]
         out += flat_rows(t2, "cae_table2", data, model, keys=("corruption",))
@@ -126,8 +163,19 @@ def _markdown(r, methods) -> str:
     from inbetween_jax.evaluation import markdown_table
     from inbetween_jax.evaluation.infilling import PS, SIGMAS
     fps = r["fps"]
+    lin = r["time_matched"]["linear"]["gaps"]
+    secs = list(lin)
+    tm_cols = ["reconstruction (no gap)"] + [f"{s} s ({lin[s]['frames']} fr)" for s in secs]
+    tm = []
+    for m in methods:
+        g = r["time_matched"][m]["gaps"]
+        row = {"Model": LABELS[m], tm_cols[0]: _fmt(r["time_matched"][m]["recon"])}
+        for s, c in zip(secs, tm_cols[1:]):
+            ratio = "" if m == "linear" else f" [x{g[s]['err'][0] / lin[s]['err'][0]:.2f}]"
+            row[c] = _fmt(g[s]["err"]) + ratio
+        tm.append(row)
     t1 = [{"Model": LABELS[m], **{f"{g} Frames": _fmt(v) for g, v in zip((0, 60, 120), r["table1"][m])},
-           "paper 0 / 60 / 120": " / ".join(PAPER_T1[m])} for m in methods]
+           "paper 0 / 60 / 120": " / ".join(PAPER_T1[m.split("_")[0]])} for m in methods]
     t1s = [{"Model": LABELS[m], **{f"{g} Frames": _fmt(v) for g, v in zip((0, 30, 60), r["table1_seconds"][m])}}
            for m in methods]
     keys = [f"sigma={s}" for s in SIGMAS] + [f"p={p}" for p in PS]
@@ -138,6 +186,8 @@ def _markdown(r, methods) -> str:
         f"CAE benchmark -- {r['note']}; data: {r['source']} test split ({', '.join(r['test_files'])}), "
         f"{r['num_clips']} clips of {r['clip_length']} frames at {fps:.0f} Hz; 3D joint error in cm, "
         "mean (± std), root-aligned.",
+        markdown_table(tm, tuple(tm_cols), f"Time-matched gaps at {fps:.0f} Hz (scored over the gap; [x r]: ratio "
+                       "to linear fill; reconstruction: the clean clip, every frame scored)", keys=("Model",)),
         markdown_table(t1, ("0 Frames", "60 Frames", "120 Frames", "paper 0 / 60 / 120"),
                        "Table 1 (gap in frames; scored over the gap)", keys=("Model",)),
         markdown_table(t1s, ("0 Frames", "30 Frames", "60 Frames"),

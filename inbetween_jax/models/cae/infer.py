@@ -34,8 +34,9 @@ from inbetween_jax.train.run import Run, RunError, restore_state
 __all__ = ["TrainedCAE", "load", "fill", "slerp_gaps", "process_motion", "infill"]
 
 class TrainedCAE:
-    """A restored model: ``predict(x_norm (B, D, T)) -> (B, D, T)`` (jitted), its normaliser, skeleton,
-    config, ``num_joints`` and checkpoint ``step``."""
+    """A restored model: ``predict(x_norm (B, D, T), mask=None) -> (B, D, T)`` (jitted; ``x_norm`` already
+    masked, ``mask`` 1 = known, used by the residual form), its normaliser, skeleton, config, ``num_joints``
+    and checkpoint ``step``."""
 
     def __init__(self, params, cfg: Config, normalizer: Normalizer, skeleton: Skeleton, num_joints: int,
                  step: int):
@@ -43,8 +44,9 @@ class TrainedCAE:
         self.num_joints = int(num_joints)
         self._apply = jax.jit(functools.partial(cae_model.apply, cfg=cfg))
 
-    def predict(self, x_norm):
-        return self._apply(self.params, jnp.asarray(x_norm, jnp.float32))
+    def predict(self, x_norm, mask=None):
+        x = jnp.asarray(x_norm, jnp.float32)
+        return self._apply(self.params, x, mask=jnp.ones_like(x) if mask is None else jnp.asarray(mask, jnp.float32))
 
 
 def load(run: Run) -> TrainedCAE:
@@ -70,12 +72,15 @@ def load(run: Run) -> TrainedCAE:
 def fill(model, x_norm, mask, keep_known: bool = False, chunk: int = 64) -> np.ndarray:
     """Model reconstruction of ``x_norm * mask``: (B, D, T) or (D, T) -> same shape.
 
-    ``model`` is a :class:`TrainedCAE` (or any object with ``predict``).
+    ``model`` is a :class:`TrainedCAE` (or any object with ``predict(x, mask)``).  A run with
+    ``model.paste_known`` returns the known entries unchanged whatever ``keep_known`` says.
     """
     x = np.asarray(x_norm, np.float32)
     single = x.ndim == 2
-    xb = (x * mask)[None] if single else x * mask
-    out = np.concatenate([np.asarray(model.predict(xb[i:i + chunk])) for i in range(0, len(xb), chunk)])
+    m = np.broadcast_to(np.asarray(mask, np.float32), x.shape)
+    xb, mb = ((x * m)[None], m[None]) if single else (x * m, m)
+    out = np.concatenate([np.asarray(model.predict(xb[i:i + chunk], mb[i:i + chunk]))
+                          for i in range(0, len(xb), chunk)])
     out = out[0] if single else out
     if keep_known:
         out = np.where(np.asarray(mask) > 0.5, x, out)

@@ -4,7 +4,8 @@ rows; see :mod:`inbetween_jax.models.cae.features`).  1 = known, 0 = missing; th
 Training (Sec. 3.3; pure ``jax.numpy`` with explicit keys, traced inside the jitted step):
 :func:`curriculum_mu` (mean gap length per epoch), :func:`gap_mask` (one gap of whole columns),
 :func:`joint_row_mask` (1-3 joints missing over the whole clip), :func:`frames_to_rows_mask`,
-:func:`training_mask` (the paper's alternation of the two).
+:func:`training_mask` (the paper's alternation of the two), :func:`matched_gap_lengths` (gap lengths matched
+to evaluation, ``data.mask.eval_matched``) and :func:`linear_prefill` (the residual model's linear fill in jnp).
 
 Evaluation and inference (NumPy; ``np.random.Generator`` for the random ones): :func:`gap_frames` /
 :func:`gap_ranges` (frame ranges <-> a (T,) frame mask), :func:`frame_mask_image`, :func:`dropout_mask` (each
@@ -17,7 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["curriculum_mu", "gap_mask", "joint_row_mask", "frames_to_rows_mask", "training_mask", "gap_frames",
+__all__ = ["curriculum_mu", "curriculum_end_epoch", "matched_gap_lengths", "linear_prefill", "gap_mask", "joint_row_mask", "frames_to_rows_mask", "training_mask", "gap_frames",
            "gap_ranges", "frame_mask_image", "dropout_mask", "joints_mask", "add_position_noise"]
 
 
@@ -27,12 +28,53 @@ def curriculum_mu(epoch, start: float = 10.0, end: float = 120.0, step: float = 
     return min(float(end), float(start) + float(step) * (int(epoch) // int(every)))
 
 
-def gap_mask(key, batch: int, length: int, mu, sigma):
-    """One gap of whole columns per clip: length ``round(N(mu, sigma^2))`` clipped to [1, T-1], start
-    uniform in [0, T - length].  Returns ``(mask (B, T) float32, 1 = known / 0 = missing, gap_len (B,))``.
-    """
+def curriculum_end_epoch(start: float = 10.0, end: float = 120.0, step: float = 10.0, every: int = 5) -> int:
+    """First epoch at which :func:`curriculum_mu` reaches ``end`` (0 when ``start >= end``)."""
+    if float(start) >= float(end):
+        return 0
+    return int(np.ceil((float(end) - float(start)) / float(step))) * int(every)
+
+
+def matched_gap_lengths(key, batch: int, centres=(30, 60, 120), spread: float = 0.25):
+    """Gap lengths matched to evaluation: a centre c drawn uniformly from ``centres``, then a length uniform
+    on [c (1 - spread), c (1 + spread)] (rounded).  Returns (B,) float32 (not yet clipped to the clip)."""
     k1, k2 = jax.random.split(key)
+    c = jnp.asarray(centres, jnp.float32)[jax.random.randint(k1, (batch,), 0, len(centres))]
+    u = jax.random.uniform(k2, (batch,), minval=-1.0, maxval=1.0)
+    return jnp.round(c * (1.0 + float(spread) * u))
+
+
+def linear_prefill(x, mask):
+    """jnp twin of :func:`inbetween_jax.baselines.linear_fill`: every row's missing entries linearly
+    interpolated in time between its nearest known entries, held before the first / after the last, 0 for a
+    row with nothing known; known entries are returned unchanged (bit for bit).
+
+    x: (..., D, T); mask: broadcastable to x, 1 = known.  Returns (..., D, T) float32.
+    """
+    x = jnp.asarray(x, jnp.float32)
+    known = jnp.broadcast_to(jnp.asarray(mask) > 0.5, x.shape)
+    t_len = x.shape[-1]
+    t = jnp.arange(t_len)
+    prev = jax.lax.cummax(jnp.where(known, t, -1), axis=x.ndim - 1)             # last known index <= t
+    nxt = jax.lax.cummin(jnp.where(known, t, t_len), axis=x.ndim - 1, reverse=True)  # first known >= t
+    has_prev, has_next = prev >= 0, nxt < t_len
+    xp = jnp.take_along_axis(x, jnp.clip(prev, 0, t_len - 1), axis=-1)
+    xn = jnp.take_along_axis(x, jnp.clip(nxt, 0, t_len - 1), axis=-1)
+    w = (t - prev) / jnp.maximum(nxt - prev, 1)
+    inner = xp + w.astype(jnp.float32) * (xn - xp)
+    filled = jnp.where(has_prev & has_next, inner, jnp.where(has_prev, xp, jnp.where(has_next, xn, 0.0)))
+    return jnp.where(known, x, filled)
+
+
+def gap_mask(key, batch: int, length: int, mu, sigma, matched=0.0, centres=(30, 60, 120), spread: float = 0.25):
+    """One gap of whole columns per clip: length ``round(N(mu, sigma^2))`` (or, where ``matched`` is 1,
+    :func:`matched_gap_lengths`) clipped to [1, T-1], start uniform in [0, T - length].
+
+    Returns ``(mask (B, T) float32, 1 = known / 0 = missing, gap_len (B,))``.
+    """
+    k1, k2, k3 = jax.random.split(key, 3)
     lam = jnp.round(mu + sigma * jax.random.normal(k1, (batch,)))
+    lam = jnp.where(jnp.asarray(matched) > 0.5, matched_gap_lengths(k3, batch, centres, spread), lam)
     lam = jnp.clip(lam, 1, length - 1).astype(jnp.int32)
     tau = jnp.floor(jax.random.uniform(k2, (batch,)) * (length - lam + 1)).astype(jnp.int32)
     t = jnp.arange(length)[None]
@@ -73,14 +115,15 @@ def frames_to_rows_mask(frame_mask=None, joint_mask=None, num_joints: int = 0, l
 
 
 def training_mask(key, batch: int, num_joints: int, length: int, mu, sigma, p_joint: float = 0.3,
-                  max_joints: int = 3):
+                  max_joints: int = 3, matched=0.0, centres=(30, 60, 120), spread: float = 0.25):
     """The paper's training corruption: per clip, with probability ``1 - p_joint`` one gap of columns
-    (:func:`gap_mask`), otherwise 1-3 joints removed over the whole clip (:func:`joint_row_mask`).
+    (:func:`gap_mask`; ``matched`` / ``centres`` / ``spread``: its evaluation-matched lengths), otherwise
+    1-3 joints removed over the whole clip (:func:`joint_row_mask`).
 
     Returns (B, D, T) float32 with 1 = known, 0 = removed (the model sees ``x * mask``).
     """
     k1, k2, k3 = jax.random.split(key, 3)
-    cols, _ = gap_mask(k1, batch, length, mu, sigma)
+    cols, _ = gap_mask(k1, batch, length, mu, sigma, matched, centres, spread)
     col_img = frames_to_rows_mask(frame_mask=cols, num_joints=num_joints, length=length)
     row_img = frames_to_rows_mask(joint_mask=joint_row_mask(k2, batch, num_joints, max_joints),
                                   num_joints=num_joints, length=length)

@@ -22,6 +22,12 @@ Variants (``cfg.model.variant``):
 * ``"holden1d"`` -- a Holden et al. style 1D temporal conv AE: features are channels, one conv of width 25
   (D -> 256) + ReLU + max-pool over time, nearest-neighbour un-pooling and a width-25 conv back to D.
 
+Residual form (``cfg.model.residual``; not the paper): :func:`apply` takes the mask too, pre-fills the missing
+entries by linear interpolation (:func:`~inbetween_jax.models.cae.masks.linear_prefill`), feeds the network
+the pre-filled image and the mask as two input channels (``holden1d``: 2D feature channels) and returns the
+pre-filled image plus the network's output.  The last conv is zero-initialised, so an untrained model
+returns the linear fill.  ``cfg.model.paste_known`` then replaces the known entries by the input's.
+
 Odd sizes (pad / crop).  Pooling is "ceil" pooling: before each 2x pooling an odd axis is padded by one
 row / frame with ``-inf`` (so the pad never wins the max; TF's ``padding='SAME'``).  Each decoder unit
 upsamples by 2 and crops the result to the size the matching encoder level had, so the output always has
@@ -39,6 +45,8 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+
+from inbetween_jax.models.cae.masks import linear_prefill
 
 __all__ = ["conv_same", "max_pool_ceil", "upsample_zeros", "level_sizes", "VARIANTS", "param_shapes",
            "init_params", "apply", "encode", "decode", "conv", "num_params"]
@@ -136,11 +144,12 @@ def param_shapes(cfg, num_features: int) -> dict:
     """
     m = cfg.model
     _check_variant(m.variant)
+    cin = 2 if m.residual else 1
     if m.variant == "holden1d":
         return {"dec": _layer(m.holden_hidden, num_features, (1, m.holden_width)),
-                "enc": _layer(num_features, m.holden_hidden, (1, m.holden_width))}
+                "enc": _layer(cin * num_features, m.holden_hidden, (1, m.holden_width))}
     channels = tuple(int(c) for c in m.channels)
-    ins = (1,) + channels[:-1]
+    ins = (cin,) + channels[:-1]
     reps = 2 if m.variant == "cae" else 1
     enc = [[_layer(ci if r == 0 else co, co) for r in range(reps)] for ci, co in zip(ins, channels)]
     dec = []   # decoder unit u mirrors encoder unit L-1-u: c_in -> (c_in ->) target
@@ -151,14 +160,19 @@ def param_shapes(cfg, num_features: int) -> dict:
 
 def init_params(key, cfg, num_features: int) -> dict:
     """Xavier-uniform weights (biases zero) drawn from ``key``: one subkey per leaf, in flattening order.
+    With ``cfg.model.residual`` the output conv's weights are zero too (the untrained model is the linear fill).
 
     key: a PRNG key; cfg: the model's Config; num_features: D.  Returns the nested dict of float32 arrays.
     """
     leaves, tree = jax.tree.flatten(param_shapes(cfg, num_features))
     keys = jax.random.split(key, len(leaves))
     init = jax.nn.initializers.xavier_uniform()
-    return jax.tree.unflatten(tree, [init(k, s.shape, s.dtype) if len(s.shape) >= 2 else jnp.zeros(s.shape, s.dtype)
-                                     for k, s in zip(keys, leaves)])
+    params = jax.tree.unflatten(tree, [init(k, s.shape, s.dtype) if len(s.shape) >= 2
+                                       else jnp.zeros(s.shape, s.dtype) for k, s in zip(keys, leaves)])
+    if cfg.model.residual:
+        last = params["dec"] if cfg.model.variant == "holden1d" else params["dec"][-1][-1]
+        last["w"] = jnp.zeros_like(last["w"])
+    return params
 
 
 def num_params(params) -> int:
@@ -172,9 +186,10 @@ def conv(layer: dict, x):
 
 
 def encode(params: dict, x, cfg):
-    """CAE / Vanilla AE encoder: (B, D, T) -> (latent (B, h, w, C), sizes [(H, W) per level, input first])."""
+    """CAE / Vanilla AE encoder: (B, D, T) or (B, D, T, C) -> (latent (B, h, w, C'), sizes [(H, W) per level,
+    input first])."""
     m = cfg.model
-    h = x[..., None]
+    h = x[..., None] if x.ndim == 3 else x
     sizes = [h.shape[1:3]]
     for unit in params["enc"]:
         pool_h = h.shape[1] >= 3
@@ -207,7 +222,9 @@ def decode(params: dict, z, sizes, cfg):
 
 
 def _holden(params: dict, x):
-    """conv(width W, D -> hidden) + ReLU + max-pool(2, time, ceil) -> nearest un-pool -> conv(hidden -> D)."""
+    """conv(width W, D -> hidden) + ReLU + max-pool(2, time, ceil) -> nearest un-pool -> conv(hidden -> D).
+
+    x: (B, D_in, T) -> (B, D, T) (D_in = 2D in the residual form: features then mask rows)."""
     t = x.shape[-1]
     h = jnp.swapaxes(x, 1, 2)[:, None]                                  # (B, 1, T, D)
     h = max_pool_ceil(jax.nn.relu(conv(params["enc"], h)), pool_h=False)  # (B, 1, ceil(T/2), H)
@@ -215,10 +232,29 @@ def _holden(params: dict, x):
     return jnp.swapaxes(conv(params["dec"], h)[:, 0], 1, 2)
 
 
-def apply(params: dict, x, cfg):
-    """The network of ``cfg.model.variant``: (B, D, T) -> (B, D, T) for any T >= 1."""
-    _check_variant(cfg.model.variant)
+def _network(params: dict, x, cfg):
     if cfg.model.variant == "holden1d":
-        return _holden(params, x)
+        return _holden(params, x if x.ndim == 3 else jnp.concatenate([x[..., 0], x[..., 1]], axis=1))
     z, sizes = encode(params, x, cfg)
     return decode(params, z, sizes, cfg)
+
+
+def apply(params: dict, x, cfg, mask=None):
+    """The network of ``cfg.model.variant``: x (B, D, T) -> (B, D, T) for any T >= 1.
+
+    x is the masked input ``x * mask``; ``mask`` (broadcastable to x, 1 = known; None: all known) is used
+    only by the residual form / ``paste_known`` (the paper's model sees ``x * mask`` alone).
+    """
+    m = cfg.model
+    _check_variant(m.variant)
+    if mask is None and (m.residual or m.paste_known):
+        mask = jnp.ones_like(x)
+    if m.residual:
+        mask = jnp.broadcast_to(mask, x.shape).astype(x.dtype)
+        base = linear_prefill(x, mask)
+        out = base + _network(params, jnp.stack([base, mask], axis=-1), cfg)
+    else:
+        out = _network(params, x, cfg)
+    if m.paste_known:
+        out = jnp.where(mask > 0.5, x, out)
+    return out

@@ -3,8 +3,10 @@
 Step ``i`` draws ``train.batch_size`` random clips of ``data.clip_length`` frames (uniform over every valid
 start in the training motions), corrupts them in the jitted step with
 :func:`~inbetween_jax.models.cae.masks.training_mask` (a gap of mean ``mu_e`` or 1-3 joints removed) and
-minimises the L1 error over the whole clip with Adam (:func:`inbetween_jax.train.optim.make_optimizer`).
-``epoch = i // steps_per_epoch`` drives the gap-length curriculum.  The state is
+minimises the L1 error over the whole clip (missing entries weighted ``loss.gap_weight``) with Adam
+(:func:`inbetween_jax.train.optim.make_optimizer`).  ``epoch = i // steps_per_epoch`` drives the gap-length
+curriculum; with ``data.mask.eval_matched`` the gap lengths switch to the evaluation-matched mixture once the
+curriculum has reached ``mu_end`` (from step 0 without a curriculum).  The state is
 ``{"params": nested dict, "opt_state": optax state}``; ``run.json`` carries the skeleton, the per-row
 normaliser (``stats``: mean, std) and ``extra`` (num_joints, clip_length, steps_per_epoch), enough for
 :func:`inbetween_jax.models.cae.infer.load` without the training data.
@@ -22,12 +24,12 @@ import optax
 from inbetween_jax.data import load_motions
 from inbetween_jax.models.cae import model
 from inbetween_jax.models.cae.features import ClipBank, body_frame_features, build_clip_bank
-from inbetween_jax.models.cae.losses import l1_loss, masked_l1
-from inbetween_jax.models.cae.masks import curriculum_mu, training_mask
+from inbetween_jax.models.cae.losses import masked_l1, weighted_l1
+from inbetween_jax.models.cae.masks import curriculum_end_epoch, curriculum_mu, training_mask
 from inbetween_jax.models.spec import Training
 from inbetween_jax.train.optim import make_optimizer
 
-__all__ = ["ClipData", "load_data", "steps_per_epoch", "epoch_mu", "make_training"]
+__all__ = ["ClipData", "load_data", "steps_per_epoch", "epoch_mu", "epoch_matched", "make_training"]
 
 
 @dataclasses.dataclass
@@ -78,11 +80,21 @@ def epoch_mu(cfg, epoch: int) -> float:
     return curriculum_mu(epoch, k.mu_start, k.mu_end, k.mu_step, k.every_epochs)
 
 
+def epoch_matched(cfg, epoch: int) -> bool:
+    """True when ``epoch`` draws evaluation-matched gap lengths (``data.mask.eval_matched``, after the
+    curriculum has reached ``mu_end``; from epoch 0 without a curriculum)."""
+    k = cfg.data.mask
+    if not k.eval_matched:
+        return False
+    return not k.curriculum or epoch >= curriculum_end_epoch(k.mu_start, k.mu_end, k.mu_step, k.every_epochs)
+
+
 def make_training(cfg, data: ClipData) -> Training:
     """The pure pieces for :func:`inbetween_jax.train.run_training` and the run metadata.
 
-    batch: ``{"x": (B, D, T) normalised clean clips, "mu": () mean gap length of this step's epoch}``;
-    metrics: ``loss`` (L1 over the whole clip), ``hole_l1`` (L1 over the removed entries), ``mu``.
+    batch: ``{"x": (B, D, T) normalised clean clips, "mu": () mean gap length of this step's epoch,
+    "matched": () 1.0 when this epoch draws evaluation-matched gap lengths}``;
+    metrics: ``loss`` (weighted L1 over the whole clip), ``hole_l1`` (L1 over the removed entries), ``mu``.
     """
     bank = data.bank
     d = bank.frames.shape[1]
@@ -96,11 +108,12 @@ def make_training(cfg, data: ClipData) -> Training:
 
     def step_fn(state, batch, key):
         x, mu = batch["x"], batch["mu"]
-        mask = training_mask(key, bsz, j, length, mu, k.sigma, k.p_joint, k.max_joints)
+        mask = training_mask(key, bsz, j, length, mu, k.sigma, k.p_joint, k.max_joints, batch["matched"],
+                             tuple(k.matched_frames), k.matched_spread)
 
         def loss_fn(params):
-            y = model.apply(params, x * mask, cfg)
-            return l1_loss(y, x), y
+            y = model.apply(params, x * mask, cfg, mask)
+            return weighted_l1(y, x, mask, cfg.loss.gap_weight), y
 
         (loss, y), grads = jax.value_and_grad(loss_fn, has_aux=True)(state["params"])
         updates, opt_state = tx.update(grads, state["opt_state"], state["params"])
@@ -111,7 +124,8 @@ def make_training(cfg, data: ClipData) -> Training:
 
     def batch_fn(step, key):
         idx = np.asarray(jax.random.randint(key, (bsz,), 0, n))
-        return {"x": bank.clips(idx), "mu": np.float32(epoch_mu(cfg, step // spe))}
+        return {"x": bank.clips(idx), "mu": np.float32(epoch_mu(cfg, step // spe)),
+                "matched": np.float32(epoch_matched(cfg, step // spe))}
 
     motions = data.motions
     meta = {"skeleton": motions[0].skeleton.to_dict(), "fps": float(motions[0].fps),
