@@ -1,0 +1,35 @@
+"""Checkpoint selection on the validation split: the best-scoring step is recorded and loaded by default."""
+import json
+import os
+
+from inbetween_jax.train.run import load_run, write_run
+from inbetween_jax.train.select import SELECTION_FILE, select_checkpoint, selected_step
+
+
+def _fake_run(tmp_path, steps):
+    run_dir = str(tmp_path / "run")
+    write_run(run_dir, model="scvae", preset="tiny", overrides=[], config={"train": {"num_steps": 9}})
+    for s in steps:
+        os.makedirs(os.path.join(run_dir, "checkpoints", str(s)))
+        open(os.path.join(run_dir, "checkpoints", str(s), "x"), "w").close()
+    return run_dir
+
+
+def test_selection_picks_the_lowest_validation_score_and_load_run_uses_it(tmp_path):
+    run_dir = _fake_run(tmp_path, [0, 250, 500, 750])
+    assert load_run(run_dir).step == 750                       # no selection: the latest
+    scores = {250: 0.9, 500: 0.7, 750: 0.8}
+    seen = []
+    out = select_checkpoint(run_dir, "cmu", lambda r: seen.append(r.step) or scores[r.step], "val L2P", log=None)
+    assert seen == [250, 500, 750]                              # step 0 (the untrained state) is not a candidate
+    assert out["step"] == 500 and selected_step(run_dir) == 500
+    assert load_run(run_dir).step == 500 and load_run(run_dir, 750).step == 750
+    rec = json.load(open(os.path.join(run_dir, SELECTION_FILE)))
+    assert rec["split"] == "val" and rec["scores"]["750"] == 0.8
+
+
+def test_a_selection_whose_checkpoint_is_gone_falls_back_to_the_latest(tmp_path):
+    run_dir = _fake_run(tmp_path, [250, 500])
+    with open(os.path.join(run_dir, SELECTION_FILE), "w") as f:
+        json.dump({"step": 100}, f)
+    assert load_run(run_dir).step == 500
