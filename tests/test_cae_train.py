@@ -187,7 +187,7 @@ def test_bench_quick_runs(tmp_path):
     assert len(ratio) == 1 and 0.5 < ratio[0]["value"] < 1.5 and "Time-matched gaps" in r["markdown"]
     assert r["table1"]["linear"][0] is None and all(len(v) == 3 for v in r["table1"].values())
     assert set(r["table2"]["cae"]) == {"sigma=1.0", "sigma=1.5", "p=0.3", "p=0.5"}
-    assert set(r["bones"]) == {"holden1d", "vanilla", "cae"}
+    assert set(r["bones"]) == {"holden1d", "vanilla", "cae", "cae_residual"}
     assert os.path.isfile(tmp_path / "results" / "cae_bench.md")
     assert "| Linear interpolation | n/a |" in r["markdown"]
     rec = [x for x in r["rows"] if x["table"] == "cae_table1" and x["variant"] == "cae" and x["frames"] == 60
