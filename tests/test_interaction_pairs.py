@@ -21,8 +21,20 @@ needs_pairs = pytest.mark.skipif(not os.path.isdir(PAIRS_DIR), reason="../shared
 
 
 @pytest.fixture(scope="module")
-def real_pairs():
-    return idata.load_pairs(PAIRS_DIR)
+def take12():
+    """Take 12 (a test take) as one real pair: 30 Hz, centimetres, all 43 joints."""
+    return idata.load_pair(os.path.join(PAIRS_DIR, "60_12_scaled.bvh"), os.path.join(PAIRS_DIR, "61_12_scaled.bvh"),
+                           "60+61_12")
+
+
+@needs_pairs
+def test_one_take_units_and_rate(take12):
+    assert take12.fps == 30.0 and take12.num_frames == 423          # 1690 frames at 120 fps -> 423 at 30 Hz
+    hips = take12.feats[:, :, 0, 1] / 100.0                          # cm -> m
+    assert 0.8 <= np.median(hips) <= 1.1
+    # the partners dance close together (median root distance on the floor under 1.2 m)
+    sep = np.linalg.norm((take12.feats[0, :, 0, :3] - take12.feats[1, :, 0, :3])[:, [0, 2]], axis=-1) / 100.0
+    assert 0.3 < np.median(sep) < 1.2
 
 
 @needs_pairs
@@ -37,20 +49,14 @@ def test_pairs_found_by_take_id_and_split_per_take():
     assert sum(s == "train" for s in splits.values()) == 10
 
 
+@pytest.mark.slow
 @needs_pairs
-def test_real_pairs_units_rate_and_split(real_pairs):
-    assert all(not p.constructed and p.fps == 30.0 for p in real_pairs)
-    hips = np.concatenate([p.feats[:, :, 0, 1].ravel() for p in real_pairs]) / 100.0   # cm -> m
-    assert 0.8 <= np.median(hips) <= 1.1
-    # a 120 fps take of 1690 frames becomes 423 frames at 30 Hz
-    assert {p.name: p.num_frames for p in real_pairs}["60+61_12"] == 423
+def test_all_real_pairs_split_per_take():
+    real_pairs = idata.load_pairs(PAIRS_DIR)
+    assert all(not p.constructed and p.fps == 30.0 and p.feats.shape[2] == 21 for p in real_pairs)
     test = idata.split_pairs(real_pairs, "test")
     assert [p.name for p in test] == ["60+61_12", "60+61_13"]
     assert not {p.name for p in test} & {p.name for p in idata.split_pairs(real_pairs, "train")}
-    # the partners dance close together (median root distance on the floor under 1.2 m)
-    p = real_pairs[0]
-    sep = np.linalg.norm((p.feats[0, :, 0, :3] - p.feats[1, :, 0, :3])[:, [0, 2]], axis=-1) / 100.0
-    assert 0.3 < np.median(sep) < 1.2
 
 
 @needs_pairs
@@ -91,22 +97,21 @@ def test_dropped_joints_never_move():
 
 
 @needs_pairs
-def test_real_pair_baselines_on_test_windows(real_pairs):
-    test = idata.split_pairs(real_pairs, "test")
-    w = idata.eval_windows(test, proto.N_INPUT, 30, 60, 0.01, max_windows=4)
+def test_real_pair_baselines_on_test_windows(take12):
+    w = idata.eval_windows([take12], proto.N_INPUT, 30, 60, 0.01, max_windows=2)
     key = jax.random.key(0)
     interp = proto.interpolation_method(w, 6, 1, key)
     hold = proto.hold_method(w, 6, 1, key)
     guess = proto.guessed_interpolation_method(w, 6, 1, key)
     gt = w["x"][:, :, proto.N_INPUT:proto.N_INPUT + 30]
-    assert interp.shape == hold.shape == guess.shape == (1, 4, 2, 60) + w["x"].shape[3:]
+    assert interp.shape == hold.shape == guess.shape == (1, 2, 2, 60) + w["x"].shape[3:]
     err = {k: np.abs(v[0, :, :, :30, :, :3] - gt[..., :3]).mean() for k, v in
            dict(interp=interp, hold=hold).items()}
     assert err["interp"] < err["hold"]                      # interpolation toward the keypose beats freezing
     g = proto.guess_gap_length(w)
-    assert g.shape == (4,) and (g >= 5).all() and (g <= 200).all()
+    assert g.shape == (2,) and (g >= 5).all() and (g <= 200).all()
     # stop rule: interpolation with the true length arrives by frame 30 + 1; holding rarely arrives
-    true_len = proto.arrival_stats(lambda b, s, n, k: proto._interp_then_hold(b, np.full(4, 30), s * 10)[None], w)
+    true_len = proto.arrival_stats(lambda b, s, n, k: proto._interp_then_hold(b, np.full(2, 30), s * 10)[None], w)
     assert true_len["reached"] == 1.0 and true_len["median_frames"] <= 31
     held = proto.arrival_stats(proto.hold_method, w)
     assert held["reached"] < 1.0

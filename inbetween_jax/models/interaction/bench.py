@@ -89,7 +89,7 @@ def _skipped(why: str) -> dict:
     return {"markdown": f"{TITLE}\n\nSkipped: {why}. Train one with `{TRAIN_HINT}`.", "rows": [], "skipped": why}
 
 
-def _has_real_pairs(source) -> bool:
+def has_real_pairs(source) -> bool:
     from inbetween_jax.models.interaction.data import find_pair_files
     return bool(source) and source != "embedded" and os.path.isdir(source) and bool(find_pair_files(source))
 
@@ -103,7 +103,7 @@ def run(source, results_dir: str, run_dir, quick: bool = False) -> dict:
     if run_dir is not None:
         full_dir, indep_dir = _find_runs(run_dir)
     trained = _restore(full_dir) if full_dir and _has_run(full_dir) else None
-    if trained is None and not _has_real_pairs(source):
+    if trained is None and not has_real_pairs(source):
         return _skipped("no interaction run folder given" if run_dir is None
                         else f"{run_dir} holds no trained interaction run")
     import jax
