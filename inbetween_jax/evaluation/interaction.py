@@ -5,7 +5,7 @@ J, 9)`` in each character's keyframe space).  Test windows (:func:`table1_window
 context frames, L transition frames and the keyframe.  Columns (:data:`COLUMNS`): L2P / L2Q at 30 and 50
 frames, foot skating (first 50 frames, clamp(2 - 2^(h/H)), H = 2.5 cm, cm/frame), interaction score at
 40 / 60 / 80 frames, diversity (APD over 10 samples, metres) at 30 / 50, Frechet distance of classifier
-features and 100 x NPSS at 100 / 150 / 200 frames.
+features and 100 x NPSS at 100 / 150 / 200 frames (:data:`NPSS_NOTE`).
 
 The interaction score and Frechet features come from an independently trained interaction classifier
 (periodic autoencoder on PJD dynamics + MLP with per-character pose statistics), trained on real pairs
@@ -14,6 +14,7 @@ in-betweens, jittered poses): :func:`train_classifier`, :func:`classify_windows`
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import jax
@@ -32,7 +33,8 @@ from inbetween_jax.models.interaction.layers import Discriminator, PeriodicAE, p
 
 __all__ = ["CLS_N", "N_INPUT", "LENGTHS", "PAPER_BOXING", "COLUMNS", "HEADERS", "global_quats",
            "InteractionClassifier", "train_classifier", "classify_windows", "table1_windows", "l2p_stats",
-           "interpolation_method", "ground_truth_method", "evaluate", "wide_rows", "long_rows", "format_table"]
+           "interpolation_method", "ground_truth_method", "hold_method", "guess_gap_length",
+           "guessed_interpolation_method", "independent_method", "keypose_distance_m", "arrival_stats", "evaluate", "wide_rows", "long_rows", "format_table"]
 
 CLS_N = 30          # PJD frames per classifier window (paper: N = 30)
 N_INPUT = 20        # context frames of every test window (paper: T = 20)
@@ -41,6 +43,14 @@ PAPER_BOXING = dict(l2p_30=0.192, l2p_50=0.208, l2q_30=0.254, l2q_50=0.279, foot
                     inter_60=0.911, inter_80=0.905, div_30=1.104, div_50=1.802, fid_100=0.282, fid_150=0.287,
                     fid_200=0.289, npss_100=1.398, npss_150=1.430, npss_200=1.531)
 COLUMNS = tuple(PAPER_BOXING)
+GUESS_NOTE = ("Interpolation (guessed gap length) does not know the gap: per character it divides the mean joint "
+              "distance from the last context frame to the keypose by the mean joint speed over the last 10 "
+              "context frames, takes the larger of the two characters, rounds and clips to 5-200 frames, "
+              "interpolates over that many frames and then holds the keypose (its stop rule).")
+NPSS_NOTE = ("NPSS: per window and quaternion channel (both characters' global quaternions), the earth mover's "
+             "distance between the normalised cumulative power spectra (real part of the FFT over the frames) is "
+             "summed over all frequency bins; channels are then averaged weighted by their ground-truth total "
+             "power, pooled over windows (the LaFAN1 benchmark formula), x 100.")
 HEADERS = {"l2p": "L2P", "l2q": "L2Q", "foot": "Foot", "inter": "Inter", "div": "Div", "fid": "FD",
            "npss": "100xNPSS"}
 
@@ -132,6 +142,12 @@ def train_classifier(pairs, num_joints: int, joints=(), steps: int = 300, batch:
     return gdef, params, float(acc)
 
 
+@functools.lru_cache(maxsize=8)
+def _classifier_apply(gdef):
+    """One jitted apply per classifier graph (every method and length of a table reuses it)."""
+    return jax.jit(lambda p, x: nnx.merge(gdef, p)(x))
+
+
 def classify_windows(gdef, params, clip, stride: int = 10):
     """Score a long clip (B, 2, T, J, 9) (common space, T >= N + 1) on all (N + 1)-frame windows with
     ``stride``: -> (probabilities (B, W), features (B, W, H))."""
@@ -139,7 +155,7 @@ def classify_windows(gdef, params, clip, stride: int = 10):
     starts = list(range(0, T - CLS_N, stride)) or [0]
     wins = jnp.stack([clip[:, :, s:s + CLS_N + 1] for s in starts], 1)             # (B, W, 2, N+1, J, 9)
     B, W = wins.shape[:2]
-    logit, feat, _ = jax.jit(lambda p, x: nnx.merge(gdef, p)(x))(params, wins.reshape((B * W,) + wins.shape[2:]))
+    logit, feat, _ = _classifier_apply(gdef)(params, wins.reshape((B * W,) + wins.shape[2:]))
     return jax.nn.sigmoid(logit).reshape(B, W), feat.reshape(B, W, -1)
 
 
@@ -177,6 +193,79 @@ def ground_truth_method(b, steps, samples, key, n_pred: int = 10):
     """The test windows' own transition frames as a method (the reference row)."""
     L = b["x"].shape[2] - N_INPUT - 1
     return _pad_to(b["x"][:, :, N_INPUT:N_INPUT + L], steps * n_pred, samples)
+
+
+def hold_method(b, steps, samples, key, n_pred: int = 10):
+    """Hold-last-frame baseline: both characters freeze at their last context frame (no stop rule)."""
+    last = np.asarray(b["x"][:, :, N_INPUT - 1:N_INPUT])
+    return np.repeat(np.repeat(last, steps * n_pred, 2)[None], samples, 0)
+
+
+def guess_gap_length(b, lo: int = 5, hi: int = 200) -> np.ndarray:
+    """Gap length guessed without the true one: per character, the mean joint distance from the last context
+    frame to the keypose divided by the mean joint speed over the last 10 context frames (metres and metres per
+    frame, both in the keyframe space); the larger of the two characters, rounded, clipped to [lo, hi].  -> (B,) int."""
+    x = np.asarray(b["x"], np.float64)[..., :3]
+    dist = np.linalg.norm(np.asarray(b["keypose"], np.float64)[..., :3] - x[:, :, N_INPUT - 1], axis=-1).mean(-1)
+    speed = np.linalg.norm(np.diff(x[:, :, N_INPUT - 11:N_INPUT], axis=2), axis=-1).mean((2, 3))
+    return np.clip(np.round((dist / np.maximum(speed, 1e-4)).max(1)), lo, hi).astype(int)
+
+
+def _interp_then_hold(b, gaps, frames: int) -> np.ndarray:
+    """Per window: interpolation over ``gaps[i]`` frames, then the keypose held; -> (B, 2, frames, J, 9)."""
+    x, kp = np.asarray(b["x"]), np.asarray(b["keypose"])
+    out = np.repeat(kp[:, :, None], frames, 2).astype(np.float32)
+    for g in np.unique(gaps):
+        sel = np.flatnonzero(gaps == g)
+        n = min(int(g), frames)
+        out[sel, :, :n] = np.asarray(two_character_interpolation(x[sel, :, N_INPUT - 1], kp[sel], int(g)))[:, :, :n]
+    return out
+
+
+def guessed_interpolation_method(b, steps, samples, key, n_pred: int = 10):
+    """Interpolation over the guessed gap length (:func:`guess_gap_length`), then the keypose held (its stop
+    rule: it stops at the guessed length)."""
+    out = _interp_then_hold(b, guess_gap_length(b), steps * n_pred)
+    return np.repeat(out[None], samples, 0)
+
+
+def independent_method(sample):
+    """The model run on each character independently: ``sample`` (a method, ``(windows, steps, samples, key) ->
+    (S, B, 2, F, J, 9)``) sees, for character c, a pair whose both slots hold c itself (same context, same
+    keypose, identity relative space), so nothing of the real partner reaches it; slot 0 of each run is kept."""
+    def method(b, steps, samples, key):
+        outs = []
+        for c in (0, 1):
+            bc = {k: b[k] for k in ("x", "keypose")}
+            bc = {k: np.repeat(np.asarray(v)[:, c:c + 1], 2, 1) for k, v in bc.items()}
+            B = bc["x"].shape[0]
+            bc["rel_R"] = np.broadcast_to(np.eye(3, dtype=np.float32), (B, 2, 3, 3)).copy()
+            bc["rel_t"] = np.zeros((B, 2, 3), np.float32)
+            outs.append(np.asarray(sample(bc, steps, samples, jax.random.fold_in(key, c)))[:, :, 0])
+        return np.stack(outs, 2)
+    return method
+
+
+def keypose_distance_m(frames, keypose, pos_scale: float = 0.01) -> np.ndarray:
+    """Mean joint distance (metres) of frames (..., 2, F, J, 9) to keypose (..., 2, J, 9), the larger of the two
+    characters: -> (..., F)."""
+    d = np.linalg.norm(np.asarray(frames)[..., :3] - np.asarray(keypose)[..., None, :, :3], axis=-1).mean(-1)
+    return d.max(-2) * (0.01 / pos_scale)
+
+
+def arrival_stats(method, b, threshold_m: float = 0.15, key=None, pos_scale: float = 0.01) -> dict:
+    """Stop-rule statistics on windows ``b``: roll ``method`` out for 2 x the true gap L and find the first frame
+    where both characters are within ``threshold_m`` (mean joint distance, metres) of their keyposes.
+    -> {reached: share of windows arriving within 2 L, median_frames: median arrival frame of those (1-based),
+    true_gap: L, threshold_m}."""
+    L = b["x"].shape[2] - N_INPUT - 1
+    key = jax.random.key(0) if key is None else key
+    frames = np.asarray(method(b, math.ceil(2 * L / 10), 1, key))[0, :, :, :2 * L]
+    ok = keypose_distance_m(frames, b["keypose"], pos_scale) < threshold_m
+    hit = ok.any(-1)
+    first = ok.argmax(-1) + 1
+    return dict(reached=float(hit.mean()), median_frames=float(np.median(first[hit])) if hit.any() else float("nan"),
+                true_gap=int(L), threshold_m=float(threshold_m))
 
 
 def evaluate(method, windows, stats, cls, feet, pos_scale, key, num_div=10) -> dict:

@@ -89,69 +89,117 @@ def _skipped(why: str) -> dict:
     return {"markdown": f"{TITLE}\n\nSkipped: {why}. Train one with `{TRAIN_HINT}`.", "rows": [], "skipped": why}
 
 
+def has_real_pairs(source) -> bool:
+    from inbetween_jax.models.interaction.data import find_pair_files
+    return bool(source) and source != "embedded" and os.path.isdir(source) and bool(find_pair_files(source))
+
+
 def run(source, results_dir: str, run_dir, quick: bool = False) -> dict:
-    """Evaluate and write ``results_dir/interaction_table.{md,json}``; returns ``{"markdown", "rows", ...}``."""
-    if run_dir is None:
-        return _skipped("no interaction run folder given")
-    full_dir, indep_dir = _find_runs(run_dir)
-    if not _has_run(full_dir):
-        return _skipped(f"{run_dir} holds no trained interaction run")
+    """Evaluate and write ``results_dir/interaction_table.{md,json}``; returns ``{"markdown", "rows", ...}``.
+
+    Without a trained run the table is still made when ``source`` holds real pairs: the baselines
+    (interpolation with the true / a guessed gap length, hold last frame) and ground truth."""
+    full_dir = indep_dir = None
+    if run_dir is not None:
+        full_dir, indep_dir = _find_runs(run_dir)
+    trained = _restore(full_dir) if full_dir and _has_run(full_dir) else None
+    if trained is None and not has_real_pairs(source):
+        return _skipped("no interaction run folder given" if run_dir is None
+                        else f"{run_dir} holds no trained interaction run")
     import jax
 
     from inbetween_jax.evaluation import interaction as proto
-    from inbetween_jax.evaluation.tables import flat_rows
+    from inbetween_jax.evaluation.tables import flat_rows, markdown_table
+    from inbetween_jax.models.interaction.config import get_config
     from inbetween_jax.models.interaction.data import load_pairs, split_pairs
     t0 = time.time()
-    trained = _restore(full_dir)
-    train_source = (_load_run_data(full_dir) or {}).get("source")
-    cfg = trained.cfg
+    cfg = trained.cfg if trained is not None else get_config()
     d = cfg.data
-    data_source = train_source if source is None else source
+    data_source = source
+    if trained is not None:
+        train_source = (_load_run_data(full_dir) or {}).get("source")
+        data_source = train_source if source is None else source
     pairs = load_pairs(data_source, d.pair_distance)
-    if pairs[0].feats.shape[2] != trained.num_joints:      # the run was trained on another skeleton
+    if trained is not None and pairs[0].feats.shape[2] != trained.num_joints:   # trained on another skeleton
         data_source = train_source
         pairs = load_pairs(data_source, d.pair_distance)
     train, test = split_pairs(pairs, "train", d.split), split_pairs(pairs, "test", d.split)
     constructed = any(p.constructed for p in pairs)
     windows = proto.table1_windows(test, d.pos_scale, 24 if quick else 128)
     stats = proto.l2p_stats(train, d.pos_scale, (d.key_min, d.key_max))
-    cls = proto.train_classifier(train, trained.num_joints, cfg.model.pjd_joints, steps=40 if quick else 400,
-                                 pos_scale=d.pos_scale)
+    J = pairs[0].feats.shape[2]
+    cls = proto.train_classifier(train, J, cfg.model.pjd_joints, steps=40 if quick else 400, pos_scale=d.pos_scale)
     feet = tuple(pairs[0].skeleton.foot_joints())
     key = jax.random.key(0)
-    methods = {f"Ours (cross-space, step {trained.step})": ("interaction", _model_method(trained))}
-    if cfg.model.refiner:
-        methods["w/o Motion Refiner (same checkpoint, refiner off)"] = ("interaction", _model_method(trained, False))
-    nogan = full_dir + "_nogan"
-    if _has_run(nogan):
-        g = _restore(nogan)
-        methods[f"w/o Inter. GAN (step {g.step})"] = ("interaction", _model_method(g))
+    methods, stop_rule, notes = {}, {}, []
     indep = _restore(indep_dir) if indep_dir else None
-    if indep is not None:
-        methods[f"Independent characters (same net w/o interaction, step {indep.step})"] = \
-            ("interaction", _model_method(indep))
-    methods["Independent characters (interpolation)"] = ("interpolation", proto.interpolation_method)
+    if trained is not None:
+        ours = f"Ours (cross-space, step {trained.step})"
+        methods[ours] = ("interaction", _model_method(trained))
+        stop_rule[ours] = methods[ours][1]
+        if cfg.model.refiner:
+            methods["w/o Motion Refiner (same checkpoint, refiner off)"] = ("interaction",
+                                                                          _model_method(trained, False))
+        nogan = full_dir + "_nogan"
+        if _has_run(nogan):
+            g = _restore(nogan)
+            methods[f"w/o Inter. GAN (step {g.step})"] = ("interaction", _model_method(g))
+        if indep is not None:
+            methods[f"Independent characters (same net w/o interaction, step {indep.step})"] = \
+                ("interaction", _model_method(indep))
+        if not constructed:
+            name = "Ours run on each character independently (partner slot = the character itself)"
+            methods[name] = ("interaction", proto.independent_method(methods[ours][1]))
+            stop_rule[name] = methods[name][1]
+    else:
+        notes.append("No trained interaction run: the model rows and the model run on each character "
+                     f"independently are skipped (train one with `{TRAIN_HINT} --source {data_source}`).")
+    interp = "Independent characters (interpolation)" if constructed else "Interpolation (true gap length)"
+    methods[interp] = ("interpolation", proto.interpolation_method)
+    if not constructed:
+        guess = "Interpolation (guessed gap length)"
+        methods[guess] = ("interpolation_guess", proto.guessed_interpolation_method)
+        stop_rule[guess] = methods[guess][1]
+        methods["Hold last frame"] = ("hold", proto.hold_method)
     methods["Ground truth"] = ("ground_truth", proto.ground_truth_method)
     results = {name: proto.evaluate(m, windows, stats, cls[:2], feet, d.pos_scale, key)
                for name, (_, m) in methods.items()}
     paper_name = "Paper, Boxing 'Ours' (different data; reference only)"
     results[paper_name] = dict(proto.PAPER_BOXING)
     stops = {}
-    if windows.get(50):
+    if trained is not None and windows.get(50):
         stops["Ours"] = stop_stats(trained, windows[50])
         if indep is not None:
             stops["Independent"] = stop_stats(indep, windows[50])
+    arrivals = {}
+    if not constructed:
+        for L in (30, 50):
+            if windows.get(L):
+                for name, m in stop_rule.items():
+                    arrivals[(name, L)] = proto.arrival_stats(m, windows[L], cfg.model.stop_threshold, key,
+                                                              d.pos_scale)
     n_win = {L: (len(w["names"]) if w else 0) for L, w in windows.items()}
     kind = ("CONSTRUCTED pairs (single-person clips paired by us, not real two-person captures)" if constructed
-            else "real pairs")
-    note = (f"Data: {data_source or 'default source'}; {len(pairs)} {kind}; test windows per length {n_win}; "
-            f"classifier accuracy {cls[2]:.2f}.")
+            else "REAL two-person capture pairs (split by whole takes: " +
+            ", ".join(f"{sp} {[p.name for p in pairs if p.split == sp]}" for sp in ("train", "test")) + ")")
+    note = (f"Data: {data_source or 'default source'}; {len(pairs)} {kind}; {J} joints at {pairs[0].fps:g} fps; "
+            f"test windows per length {n_win}; interaction classifier trained on the training pairs, accuracy "
+            f"{cls[2]:.2f}. {proto.GUESS_NOTE} "
+            + proto.NPSS_NOTE + (" " + " ".join(notes) if notes else ""))
     table = proto.format_table(results, note)
     if stops:
         table += "\n\nRollout until both characters are within the keypose threshold (50-frame test gaps): " + \
             "; ".join(f"{k}: {v['reached']:.0%} reached within {v['max_frames']} frames, mean {v['mean_frames']:.0f} "
                       f"frames (true gap {v['true_gap']}, threshold {v['threshold_m']} m, median closest approach "
                       f"{v['median_closest_m']:.2f} m)" for k, v in stops.items())
+    if arrivals:
+        arows = [{"method": n, "true gap": L, "reached within 2x gap": round(v["reached"], 3),
+                  "median frames to arrival": v["median_frames"]} for (n, L), v in arrivals.items()]
+        table += "\n\n" + markdown_table(arows, ("true gap", "reached within 2x gap", "median frames to arrival"),
+                                          keys=("method",), digits=3,
+                                          title=f"Stop rule: first frame where both characters are within "
+                                                f"{cfg.model.stop_threshold} m (mean joint distance) of their "
+                                                "keyposes, rollout of 2 x the true gap")
     data_name = "embedded" if data_source == "embedded" else os.path.basename(os.path.normpath(str(data_source)))
     groups = {name: kind_ for name, (kind_, _) in methods.items()}
     groups[paper_name] = "paper"
@@ -164,14 +212,18 @@ def run(source, results_dir: str, run_dir, quick: bool = False) -> dict:
         rows += flat_rows([{"method": name, "reached": s["reached"], "mean_frames": s["mean_frames"],
                             "median_closest_m": s["median_closest_m"]}], table="interaction_stop", data=data_name,
                           model="interaction", variant=name, keys=())
+    for (name, L), v in arrivals.items():
+        rows += flat_rows([{"method": name, "frames": L, "reached": v["reached"], "median_frames": v["median_frames"]}],
+                          table="interaction_arrival", data=data_name, model=groups[name], variant=name)
     os.makedirs(results_dir, exist_ok=True)
     with open(os.path.join(results_dir, "interaction_table.md"), "w") as f:
         f.write(table + "\n")
     out = dict(markdown=f"{TITLE}\n\n" + table, rows=rows, results=results, note=note, stops=stops,
+               arrivals=[dict(method=n, frames=L, **v) for (n, L), v in arrivals.items()],
                constructed=constructed, windows=n_win, seconds=time.time() - t0, full_run=full_dir,
                indep_run=indep_dir)
     with open(os.path.join(results_dir, "interaction_table.json"), "w") as f:
-        json.dump(out, f, indent=1)
+        json.dump(out, f, indent=1, default=float)
     return out
 
 

@@ -5,8 +5,10 @@ Features and spaces are those of :mod:`inbetween_jax.models.interaction.features
 world features, rigid ``(R, t)`` keypose spaces).
 
 Real paired captures: ``load_pair(a, b)`` (two BVH files sharing frame timing) and
-``find_pair_files(folder)`` (``<name>_A.bvh`` / ``<name>_B.bvh`` or a ``pairs.txt`` list of
-``a.bvh b.bvh`` lines).  Where none exist, :func:`construct_pairs` pairs single-person clips of the same
+``find_pair_files(folder)`` (``<name>_A.bvh`` / ``<name>_B.bvh``, a ``pairs.txt`` list of
+``a.bvh b.bvh [train|test]`` lines, or two subjects' files sharing a take id such as the CMU salsa
+``60_NN_scaled.bvh`` / ``61_NN_scaled.bvh``).  :func:`load_real_pairs` resamples them to 30 Hz, converts the
+detected unit to centimetres, drops joints that never move and splits whole takes (last sixth test).  Where none exist, :func:`construct_pairs` pairs single-person clips of the same
 choreography (LaFAN1 ``<action>_subjectN``) or consecutive clips, placing the second performer at a fixed
 floor offset facing the first, time-aligned by frame index.  Such pairs are flagged ``constructed=True``.
 """
@@ -20,23 +22,28 @@ from typing import Optional, Sequence
 import numpy as np
 
 from inbetween_jax.data import read_bvh
+from inbetween_jax.data.features import detect_unit_scale
+from inbetween_jax.data.resample import WORKING_FPS, resample_motion
 from inbetween_jax.data.skeleton import Skeleton
 from inbetween_jax.geometry.heading import yaw_matrix
 from inbetween_jax.models.interaction.features import (apply_space, facing_yaw, keyframe_sample, mirror_feats,
                                                        relative_space, root_space, scale_positions,
                                                        skeleton_forward_axis, to_space, world_joint_features)
 
-__all__ = ["PairedMotion", "PairSet", "load_pair", "find_pair_files", "place_facing", "construct_pairs",
+__all__ = ["PairedMotion", "PairSet", "load_pair", "find_pair_files", "static_joints", "subset_skeleton",
+           "real_pair_splits", "load_real_pairs", "place_facing", "construct_pairs",
            "load_pairs", "split_pairs", "load_pair_set", "sample_batch", "eval_windows"]
 
 LAFAN_NAME = re.compile(r"^(?P<action>.+)_(?P<subject>subject\d+)\.bvh$")
+TAKE_NAME = re.compile(r"^(?P<subject>[^_]+)_(?P<take>\d+)(?:_[^.]*)?\.bvh$", re.IGNORECASE)
 
 
 @dataclasses.dataclass
 class PairedMotion:
     """Two characters on one skeleton sharing frame timing.
 
-    feats: (2, T, J, 9) float32 world-space features (positions in file units, cm for LaFAN1/CMU).
+    feats: (2, T, J, 9) float32 world-space features (positions in cm: constructed pairs keep the files'
+    units, cm for LaFAN1 / CMU; real pairs are converted from their detected unit).
     """
     feats: np.ndarray
     skeleton: Skeleton
@@ -54,38 +61,147 @@ class PairedMotion:
         return dataclasses.replace(self, feats=self.feats[:, start:stop])
 
 
-def load_pair(path_a: str, path_b: str, name: Optional[str] = None) -> PairedMotion:
+def load_pair(path_a: str, path_b: str, name: Optional[str] = None, fps: float = WORKING_FPS,
+              keep: Optional[np.ndarray] = None) -> PairedMotion:
     """Two BVH files of one interaction sharing frame timing -> :class:`PairedMotion` (real pair).
 
-    The files must share skeleton topology and frame rate; the longer one is cut to the shorter.
+    The files must share skeleton topology and frame rate; the longer one is cut to the shorter.  Both are
+    resampled to ``fps`` (:func:`~inbetween_jax.data.resample.resample_motion`), positions and offsets are
+    converted to centimetres (unit scale detected from the skeleton,
+    :func:`~inbetween_jax.data.features.detect_unit_scale`) and only the joints of the (J,) bool mask
+    ``keep`` are kept (default: all; see :func:`static_joints`).
     """
+    ma, mb = _read_pair(path_a, path_b, fps)
+    return _make_pair(ma, mb, name or os.path.splitext(os.path.basename(path_a))[0], keep)
+
+
+def _read_pair(path_a: str, path_b: str, fps: float):
     ma, mb = read_bvh(path_a), read_bvh(path_b)
     if not ma.skeleton.same_topology(mb.skeleton):
         raise ValueError(f"{path_a} and {path_b} use different skeletons")
     if abs(ma.frame_time - mb.frame_time) > 1e-6:
         raise ValueError(f"{path_a} ({ma.fps:.3f} fps) and {path_b} ({mb.fps:.3f} fps) differ in frame rate")
+    return resample_motion(ma, fps), resample_motion(mb, fps)
+
+
+def _make_pair(ma, mb, name: str, keep: Optional[np.ndarray]) -> PairedMotion:
+    scale = detect_unit_scale(ma.skeleton)                  # cm per file unit (1.0 for cm files)
     n = min(ma.num_frames, mb.num_frames)
-    feats = np.stack([world_joint_features(ma)[:n], world_joint_features(mb)[:n]]).astype(np.float32)
-    name = name or os.path.splitext(os.path.basename(path_a))[0]
-    return PairedMotion(feats, ma.skeleton, skeleton_forward_axis(ma.skeleton), float(ma.fps), name, False)
+    feats = np.stack([world_joint_features(ma)[:n], world_joint_features(mb)[:n]])
+    feats[..., :3] *= scale
+    keep = np.ones(ma.skeleton.num_joints, bool) if keep is None else np.asarray(keep, bool)
+    skel = subset_skeleton(ma.skeleton, keep, scale)
+    return PairedMotion(feats[:, :, keep].astype(np.float32), skel, skeleton_forward_axis(skel), float(ma.fps),
+                        name, False)
+
+
+def static_joints(motions, tol_deg: float = 1e-3) -> np.ndarray:
+    """(J,) bool: joints whose local rotation never moves (within ``tol_deg`` of its first frame in every
+    motion) and whose descendants never move either (unused finger / eye chains).  The root is never static."""
+    skel = motions[0].skeleton
+    still = np.ones(skel.num_joints, bool)
+    for m in motions:
+        q = np.asarray(m.local_quats, np.float64)
+        dot = np.abs(np.sum(q * q[:1], -1)).min(0).clip(0, 1)
+        still &= np.degrees(2 * np.arccos(dot)) <= tol_deg
+        still &= (np.abs(m.local_pos - m.local_pos[:1]).max(0) < 1e-9).all(-1)
+    still[0] = False
+    for j in range(skel.num_joints - 1, 0, -1):            # children come after parents
+        if not still[j]:
+            p = skel.parents[j]
+            while p > 0 and still[p]:
+                still[p] = False
+                p = skel.parents[p]
+    return still
+
+
+def subset_skeleton(skel: Skeleton, keep: np.ndarray, scale: float = 1.0) -> Skeleton:
+    """``skel`` restricted to the joints of the (J,) bool mask ``keep`` (closed under parents), offsets times
+    ``scale``.  A kept joint whose children were all dropped gets an end site at its first child's offset."""
+    idx = [int(j) for j in np.flatnonzero(keep)]
+    remap = {j: i for i, j in enumerate(idx)}
+    if 0 not in remap or any(skel.parents[j] not in remap for j in idx[1:]):
+        raise ValueError("kept joints must include the root and every kept joint's parent")
+    ends = [(remap[p], np.asarray(o, np.float64) * scale) for p, o in skel.end_sites if p in remap]
+    has_child = {skel.parents[j] for j in idx[1:]} | {p for p, _ in skel.end_sites}
+    for j in idx:
+        if j not in has_child:
+            kids = skel.children(j)
+            ends.append((remap[j], np.asarray(skel.offsets[kids[0]], np.float64) * scale))
+    return Skeleton(tuple(skel.names[j] for j in idx), tuple(remap.get(skel.parents[j], -1) for j in idx),
+                    np.asarray(skel.offsets, np.float64)[idx] * scale, tuple(skel.channels[j] for j in idx),
+                    tuple(sorted(ends, key=lambda e: e[0])))
+
+
+def _take_pairs(folder: str, files) -> list:
+    """Pairs of files sharing a take id (``<subject>_<take>[_suffix].bvh``, e.g. ``60_12_scaled.bvh`` with
+    ``61_12_scaled.bvh``) when the folder's take-named files come from exactly two subjects."""
+    found: dict = {}
+    for f in sorted(files):
+        m = TAKE_NAME.match(f)
+        if m:
+            found.setdefault(m.group("take"), {})[m.group("subject")] = f
+    subjects = sorted({s for take in found.values() for s in take})
+    if len(subjects) != 2:
+        return []
+    sa, sb = subjects
+    return [(f"{sa}+{sb}_{take}", os.path.join(folder, t[sa]), os.path.join(folder, t[sb]))
+            for take, t in sorted(found.items()) if len(t) == 2]
 
 
 def find_pair_files(folder: str) -> list:
-    """Real pairs in ``folder``: ``pairs.txt`` (``a.bvh b.bvh`` per line, relative to the folder) or
-    ``<name>_A.bvh`` / ``<name>_B.bvh``.  Returns ``[(name, path_a, path_b)]`` (empty when none)."""
+    """Real pairs in ``folder``: ``pairs.txt`` (``a.bvh b.bvh [train|test]`` per line, relative to the folder),
+    ``<name>_A.bvh`` / ``<name>_B.bvh``, or two subjects' files sharing a take id (``60_NN*.bvh`` with
+    ``61_NN*.bvh``).  Returns ``[(name, path_a, path_b)]`` (empty when none)."""
     listing = os.path.join(folder, "pairs.txt")
     if os.path.exists(listing):
-        out = []
-        with open(listing) as f:
-            for line in f:
-                parts = line.split("#", 1)[0].split()
-                if len(parts) == 2:
-                    a, b = (os.path.join(folder, p) for p in parts)
-                    out.append((os.path.splitext(parts[0])[0], a, b))
-        return out
+        return [(n, a, b) for n, a, b, _ in _listed_pairs(folder)]
     files = set(os.listdir(folder))
-    return [(f[:-6], os.path.join(folder, f), os.path.join(folder, f[:-6] + "_B.bvh"))
-            for f in sorted(files) if f.endswith("_A.bvh") and f[:-6] + "_B.bvh" in files]
+    ab = [(f[:-6], os.path.join(folder, f), os.path.join(folder, f[:-6] + "_B.bvh"))
+          for f in sorted(files) if f.endswith("_A.bvh") and f[:-6] + "_B.bvh" in files]
+    return ab or _take_pairs(folder, files)
+
+
+def _listed_pairs(folder: str) -> list:
+    out = []
+    with open(os.path.join(folder, "pairs.txt")) as f:
+        for line in f:
+            parts = line.split("#", 1)[0].split()
+            if len(parts) in (2, 3):
+                a, b = (os.path.join(folder, p) for p in parts[:2])
+                out.append((os.path.splitext(parts[0])[0], a, b, parts[2] if len(parts) == 3 else None))
+    return out
+
+
+def real_pair_splits(folder: str, names: Sequence[str]) -> list:
+    """Fixed train / test split of a folder's real pairs (whole takes): the ``pairs.txt`` third column where
+    given, else the last ``ceil(n / 6)`` pairs in name order are test (CMU salsa: takes 01-11 train, 12-13
+    test); a single pair is split in time instead (None)."""
+    listed = {}
+    if os.path.exists(os.path.join(folder, "pairs.txt")):
+        listed = {n: s for n, _, _, s in _listed_pairs(folder) if s}
+    if listed:
+        return [listed.get(n, "train") for n in names]
+    if len(names) < 2:
+        return [None] * len(names)
+    n_test = -(-len(names) // 6)
+    order = sorted(range(len(names)), key=lambda i: names[i])
+    test = set(order[-n_test:])
+    return ["test" if i in test else "train" for i in range(len(names))]
+
+
+def load_real_pairs(folder: str, fps: float = WORKING_FPS) -> list:
+    """Every real pair of ``folder`` (:func:`find_pair_files`) at ``fps``, in centimetres, without the joints
+    that never move in any of them (:func:`static_joints`), with the fixed split of :func:`real_pair_splits`."""
+    found = find_pair_files(folder)
+    motions = [_read_pair(a, b, fps) for _, a, b in found]
+    for (_, a, _), (m, _) in zip(found, motions):
+        if not m.skeleton.same_topology(motions[0][0].skeleton):
+            raise ValueError(f"{a}: its skeleton differs from {found[0][1]}'s; use one skeleton per folder")
+    keep = ~static_joints([m for pair in motions for m in pair])
+    splits = real_pair_splits(folder, [n for n, _, _ in found])
+    return [dataclasses.replace(_make_pair(ma, mb, name, keep), split=s)
+            for (name, _, _), (ma, mb), s in zip(found, motions, splits)]
 
 
 def _placement_space(root_feat: np.ndarray, forward_axis):
@@ -147,9 +263,8 @@ def load_pairs(source: Optional[str] = None, distance: float = 150.0) -> list:
     folder = EMBEDDED_DIR if source == "embedded" else source
     if not os.path.isdir(folder):
         raise FileNotFoundError(f"data folder {folder!r} does not exist")
-    real = find_pair_files(folder)
-    if real:
-        return [load_pair(a, b, name) for name, a, b in real]
+    if find_pair_files(folder):
+        return load_real_pairs(folder)
     if source == "embedded":   # the shipped clips are short: pair within its file-level train / test split
         from inbetween_jax.data.datasets import split_files
         pairs = []
