@@ -76,7 +76,7 @@ def test_shapes_target_hit_and_diversity(setup):
     res = fn(state["params"], jax.random.split(jax.random.key(1), 3))
     steps = MAXLEN // 2 + CFG.model.buffer_k
     assert res["fwd"]["q"].shape == (3, 4, steps, j, 4) and res["bwd"]["r"].shape == (3, 4, steps, 3)
-    assert res["out"]["q"].shape == (3, 4, MAXLEN + 1, j, 4) and res["kl_fwd"].shape == (3, 4, steps)
+    assert res["out"]["q"].shape == (3, 4, MAXLEN + 1, j, 4) and res["kl_fwd"].shape == (3, 4, steps, CFG.model.latent_dim)
     out = jax.device_get(res["out"])
     # the stitched sequence starts at the start keyframe and ends exactly on the target keyframe
     for name, frame in (("q", MAXLEN), ("r", MAXLEN), ("q", 0), ("r", 0)):

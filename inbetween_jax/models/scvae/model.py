@@ -194,7 +194,8 @@ def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, k
     ``lax.scan`` (Eq. 3, bi-directional aligning), each producing floor(L/2)+K frames; :func:`stitch`
     blends them.  Returns a dict with
       ``fwd`` / ``bwd``: frames (B, S, ...) in generation order (fwd step m = frame m+1, bwd step m =
-      frame L-1-m), ``kl_fwd`` / ``kl_bwd`` (B, S), ``valid`` (S,) bool, ``out``: stitched frames
+      frame L-1-m), ``kl_fwd`` / ``kl_bwd`` (B, S, Z) per latent dimension, ``seam`` (B,)
+      (:func:`seam_mismatch`), ``valid`` (S,) bool, ``out``: stitched frames
       (B, max_length+1, ...) for times 0..max_length (times > L repeat the target), ``h``, ``k``.
     taps: optional ``{"fwd": {name: (S, rows, cols) zeros}, "bwd": ...}`` from
     :func:`~inbetween_jax.models.scvae.deferred_grads.make_taps`: the largest matmuls then leave their weight
