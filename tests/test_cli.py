@@ -205,7 +205,7 @@ def test_help_for_every_command_and_model(argv, capsys):
     out, err = capsys.readouterr()
     assert "usage: inbetween" in out and not err
     if len(argv) == 3:                                          # a model's help lists every config key
-        assert "presets: paper, cpu, tiny" in out and "train.num_steps = " in out and "train.lr = " in out
+        assert "presets: improved, cpu, paper, tiny" in out and "train.num_steps = " in out and "train.lr = " in out
         assert "model." in out and "data." in out
 
 

@@ -44,7 +44,7 @@ from inbetween_jax.train.config import TrainConfig
 __all__ = ["ModelConfig", "MaskConfig", "DataConfig", "LossConfig", "Config", "PRESETS", "DEFAULT_PRESET",
            "get_config"]
 
-PRESETS = ("paper", "cpu", "improved", "tiny")
+PRESETS = ("improved", "cpu", "paper", "tiny")
 DEFAULT_PRESET = "improved"
 
 

@@ -46,7 +46,7 @@ from inbetween_jax.train.config import TrainConfig
 
 __all__ = ["ModelConfig", "DataConfig", "LossConfig", "Config", "PRESETS", "DEFAULT_PRESET", "get_config"]
 
-PRESETS = ("improved", "paper", "cpu", "tiny")
+PRESETS = ("improved", "cpu", "paper", "tiny")
 DEFAULT_PRESET = "improved"
 
 
