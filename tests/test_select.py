@@ -33,3 +33,13 @@ def test_a_selection_whose_checkpoint_is_gone_falls_back_to_the_latest(tmp_path)
     with open(os.path.join(run_dir, SELECTION_FILE), "w") as f:
         json.dump({"step": 100}, f)
     assert load_run(run_dir).step == 500
+
+
+def test_a_second_selection_scores_only_new_checkpoints(tmp_path):
+    run_dir = _fake_run(tmp_path, [250, 500])
+    select_checkpoint(run_dir, "cmu", lambda r: {250: 0.5, 500: 0.6}[r.step], "val L2P", log=None)
+    os.makedirs(os.path.join(run_dir, "checkpoints", "750"))
+    open(os.path.join(run_dir, "checkpoints", "750", "x"), "w").close()
+    seen = []
+    out = select_checkpoint(run_dir, "cmu", lambda r: seen.append(r.step) or 0.4, "val L2P", log=None)
+    assert seen == [750] and out["step"] == 750

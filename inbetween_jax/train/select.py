@@ -34,11 +34,12 @@ def select_checkpoint(run_dir: str, source: str, score_fn: Callable, metric: str
     validation split; record and return ``{"metric", "split", "source", "scores": {step: score}, "step"}``."""
     from inbetween_jax.train.run import _checkpoint_steps, load_run
     steps = _checkpoint_steps(os.path.join(run_dir, "checkpoints"))
+    known = _known_scores(run_dir, source, metric)   # steps scored by an earlier selection are not scored again
     scores = {}
     for step in steps:
         if step == 0:
             continue
-        scores[step] = float(score_fn(load_run(run_dir, step)))
+        scores[step] = known[step] if step in known else float(score_fn(load_run(run_dir, step)))
         if log:
             log(f"validation: step {step}: {metric} {scores[step]:.4f}")
     if not scores:
@@ -53,3 +54,15 @@ def select_checkpoint(run_dir: str, source: str, score_fn: Callable, metric: str
     if log:
         log(f"selected step {best} ({metric} {scores[best]:.4f} on the validation split)")
     return out
+
+
+def _known_scores(run_dir: str, source: str, metric: str) -> dict:
+    path = os.path.join(run_dir, SELECTION_FILE)
+    try:
+        with open(path) as f:
+            old = json.load(f)
+        if old.get("source") == source and old.get("metric") == metric:
+            return {int(k): float(v) for k, v in old.get("scores", {}).items()}
+    except (OSError, ValueError, TypeError, AttributeError):
+        pass
+    return {}
