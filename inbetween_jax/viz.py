@@ -40,8 +40,8 @@ def _check_parents(parents) -> tuple:
         par = tuple(int(p) for p in parents)
     except (TypeError, ValueError):
         raise ValueError("parents must be a sequence of ints") from None
-    if not par or par[0] != -1 or any(not 0 <= p < j for j, p in enumerate(par) if j > 0):
-        raise ValueError("parents must have parents[0] == -1 and 0 <= parents[j] < j")
+    if not par or par[0] != -1 or any(not (p == -1 or 0 <= p < j) for j, p in enumerate(par) if j > 0):
+        raise ValueError("parents must have parents[0] == -1 and 0 <= parents[j] < j (or -1: another root)")
     return par
 
 
@@ -338,7 +338,8 @@ def preview_writers(positions, parents, name: str, *, fps: float = 30.0, every: 
     One character: ``<name>_sheet.png`` (and ``<name>.gif`` with ``gif``, every ``stride``-th frame or
     sparser, see :func:`animate`).
     Two characters (positions_b (T, Jb, 3) on ``parents_b``, default ``parents``): one sheet per character,
-    ``<name>_A_sheet.png`` and ``<name>_B_sheet.png``, and one GIF showing both.
+    ``<name>_A_sheet.png`` and ``<name>_B_sheet.png``, ``<name>_pair_sheet.png`` with both in each pose slot
+    (side view, placed relative to character A's root), and one GIF showing both.
     The inputs are checked here (ValueError with a one-line message). ``progress(done, total)`` is passed
     to each writer (it counts from 0 again for each file).
     """
@@ -361,6 +362,14 @@ def preview_writers(positions, parents, name: str, *, fps: float = 30.0, every: 
             lambda path, p=p, pa=pa, label=label: contact_sheet(p, pa, path, every=int(every), keyframes=keys,
                                                                 title=label, generated=gen, first_frame=first_frame,
                                                                 progress=progress))
+    if len(chars) == 2:   # both characters in one picture: each pose slot holds the pair, placed as captured
+        both = np.concatenate([pos, chars[1][1]], axis=1)
+        par_b2 = np.asarray(chars[1][2])
+        par_both = np.concatenate([np.asarray(par), np.where(par_b2 < 0, -1, par_b2 + len(par))])
+        label = f"{title} -- both characters" if title else None
+        files[f"{name}_pair_sheet.png"] = lambda path: contact_sheet(
+            both, par_both, path, every=int(every), keyframes=keys, title=label, generated=gen,
+            first_frame=first_frame, progress=progress)
     if gif:
         two = len(chars) == 2
         files[f"{name}.gif"] = lambda path: animate(

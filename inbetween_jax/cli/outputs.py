@@ -89,8 +89,10 @@ def add_previews(files: dict, name: str, motions: list, generated=None, what: st
     """
     import numpy as np
 
+    from inbetween_jax.data.features import detect_unit_scale
     from inbetween_jax.viz import motion_positions, preview_writers
-    pos = [motion_positions(m) for m in motions]
+    cm = detect_unit_scale(motions[0].skeleton)           # the drawings are laid out in centimetres
+    pos = [motion_positions(m) * cm for m in motions]
     t = len(pos[0])
     every = max(1, -(-t // 16))
     gen = np.arange(t) % max(t - 1, 1) != 0 if generated is None else np.asarray(generated, bool)

@@ -151,7 +151,7 @@ def reference_skeleton():
     return read_bvh(split_files("embedded", "train")[0]).skeleton
 
 
-def _unit_factor(skel, ref) -> float:
+def unit_factor(skel, ref) -> float:
     """Reference units per file unit: the ratio of detected unit scales, or the exact leg-length ratio when
     it agrees with that ratio within 5 % (the same generic body at another scale)."""
     from inbetween_jax.data.features import detect_unit_scale, leg_length
@@ -173,7 +173,7 @@ def to_reference(motion, ref, fps: float, drop_tpose: bool = True):
     from inbetween_jax.data.retarget import match_joints, restrict
     if not motion.skeleton.same_topology(ref):
         motion = restrict(motion, match_joints(motion.skeleton, ref, motion.source), ref)
-    factor = _unit_factor(motion.skeleton, ref)
+    factor = unit_factor(motion.skeleton, ref)
     offsets = np.asarray(motion.skeleton.offsets, np.float64) * factor
     err = float(np.abs(offsets[1:] - np.asarray(ref.offsets)[1:]).max())
     if err > 0.02 * leg_length(ref):

@@ -14,6 +14,7 @@ import dataclasses
 import jax
 import numpy as np
 
+from inbetween_jax.data.retarget import to_frame
 from inbetween_jax.data.skeleton import Skeleton
 from inbetween_jax.data.user_input import check_skeleton, finite_or_fail, read_keyframe, same_skeleton
 from inbetween_jax.errors import UserError
@@ -122,36 +123,79 @@ def infill(args, run: Run) -> InfillResult:
     num_joints = run.extra.get("num_joints")
     n_in = cfg.data.n_input
     cache = {}
-    chars = []
+    chars, notes = [], []
     for opt, kopt, spec, kspec in (("--a", "--key-a", args.a, args.key_a), ("--b", "--key-b", args.b, args.key_b)):
         path, m, start = read_keyframe(spec, opt, -1, cache)
         kpath, km, kf = read_keyframe(kspec, kopt, -1, cache)
-        check_skeleton(m.skeleton, path, skel, num_joints)
         same_skeleton(km.skeleton, kpath, m.skeleton, path)
+        if skel is None:
+            check_skeleton(m.skeleton, path, skel, num_joints)
+        prep, factor = _on_run_rig(m, path, skel, run.fps, notes)
+        kprep = prep if kpath == path else _on_run_rig(km, kpath, skel, run.fps, [])[0]
+        start, kf = to_frame(prep, start), to_frame(kprep, kf)
         if start < n_in - 1:
-            raise UserError(f"{opt} {path}:{start}: the model needs {n_in} frames of context up to the start frame; "
-                            f"choose a start frame >= {n_in - 1}")
-        chars.append((path, m, start, kpath, km, kf))
-    (pa, ma, _, _, _, _), (pb, mb, _, _, _, _) = chars
+            raise UserError(f"{opt} {path}: the model needs {n_in} frames of context (at {run.fps or m.fps:g} fps) up "
+                            f"to the start frame; choose a later start frame")
+        chars.append((path, prep, start, kpath, kprep, kf, factor))
+    pa, pb = chars[0][0], chars[1][0]
+    ma, mb = chars[0][1].motion, chars[1][1].motion
     if abs(ma.frame_time - mb.frame_time) > 1e-6:
         raise UserError(f"{pb}: {mb.fps:.3f} fps differs from {pa} ({ma.fps:.3f} fps)")
     if args.frames > cfg.model.max_frames:
         raise UserError(f"--frames {args.frames}: this interaction checkpoint rolls out at most "
                         f"{cfg.model.max_frames} frames (model.max_frames)")
-    context = np.stack([world_joint_features(m)[s - n_in + 1:s + 1] for _, m, s, _, _, _ in chars])
-    keys = np.stack([world_joint_features(km.slice(kf, kf + 1))[0] for _, _, _, _, km, kf in chars])
+    context = np.stack([world_joint_features(p.motion)[s - n_in + 1:s + 1] for _, p, s, _, _, _, _ in chars])
+    keys = np.stack([world_joint_features(kp.motion.slice(kf, kf + 1))[0] for _, _, _, _, kp, kf, _ in chars])
     trained = load(run)
     feats = infill_features(trained, context, keys, args.frames, args.samples, args.seed)
     finite_or_fail(run.run_dir, feats)
     samples = []
     for i, name in enumerate(_sample_names(args.samples)):
         motions = []
-        for c, (path, m, s, _, km, kf) in enumerate(chars):
-            motion = features_to_motion(feats[i, c], m, s, km, kf)
+        for c, (path, prep, s, _, kprep, kf, factor) in enumerate(chars):
+            motion = features_to_motion(feats[i, c], prep.motion, s, kprep.motion, kf)
             finite_or_fail(run.run_dir, motion.local_quats, motion.local_pos)
-            motions.append(motion)
+            motions.append(_on_user_rig(motion, prep, s, kprep, kf, factor))
         samples.append((name, motions, None))
     summary = {"a": f"{pa}:{chars[0][2]}", "b": f"{pb}:{chars[1][2]}", "key_a": f"{chars[0][3]}:{chars[0][5]}",
                "key_b": f"{chars[1][3]}:{chars[1][5]}", "frames": args.frames, "samples": args.samples,
                "step": trained.step}
-    return InfillResult(samples=samples, summary=summary, what="start / keyframe")
+    return InfillResult(samples=samples, summary=summary, what="start / keyframe", notes=list(dict.fromkeys(notes)))
+
+
+def _on_run_rig(motion, path: str, skel, fps, notes: list):
+    """A user's file on the run's joints, frame rate and unit: ``(Prepared, factor)`` (run units per file unit).
+    Larger rigs are matched by joint name (:func:`inbetween_jax.data.retarget.prepare`); another unit (e.g. the
+    1/128-scaled CMU salsa files) is detected from the leg length and converted."""
+    from inbetween_jax.data.retarget import prepare
+    from inbetween_jax.data.sources import unit_factor
+    prep = prepare(motion, path, skel, fps)
+    if prep.note:
+        notes.append(prep.note)
+    factor = 1.0 if skel is None else float(unit_factor(prep.motion.skeleton, skel))
+    if abs(factor - 1.0) > 0.02:
+        m = prep.motion
+        scaled = dataclasses.replace(m, skeleton=dataclasses.replace(m.skeleton, offsets=m.skeleton.offsets * factor),
+                                     local_pos=m.local_pos * factor)
+        prep = dataclasses.replace(prep, motion=scaled)
+        notes.append(f"{path}: positions scaled by {factor:.4g} to the checkpoint's unit (and back on output)")
+    else:
+        factor = 1.0
+    return prep, factor
+
+
+def _on_user_rig(motion, prep, start: int, kprep, key_frame: int, factor: float):
+    """A generated Motion on the run's rig and unit -> the user's file rig and unit (at the run's rate)."""
+    if factor != 1.0:
+        motion = dataclasses.replace(motion, local_pos=motion.local_pos / factor,
+                                     skeleton=dataclasses.replace(motion.skeleton,
+                                                                  offsets=motion.skeleton.offsets / factor))
+    if prep.match is None:
+        return motion
+    from inbetween_jax.data.retarget import expand
+    t = motion.num_frames
+    idx = np.r_[start, np.full(t - 2, start), key_frame]
+    keys = dataclasses.replace(prep.full, local_quats=prep.full.local_quats[idx].copy(),
+                               local_pos=prep.full.local_pos[idx].copy())
+    keys.local_quats[-1], keys.local_pos[-1] = kprep.full.local_quats[key_frame], kprep.full.local_pos[key_frame]
+    return expand(motion, keys, prep.match)
