@@ -48,3 +48,29 @@ def test_infill_without_ckpt_on_a_raw_cmu_file(tmp_path):
     assert m.num_frames == 31
     np.testing.assert_allclose(m.root_pos[0], src.root_pos[40], atol=0.5)
     np.testing.assert_allclose(m.root_pos[-1], src.root_pos[160], atol=0.5)
+
+
+PAIR_A = os.path.join(SHARED, "cmu_pairs", "60_12_scaled.bvh")
+PAIR_B = os.path.join(SHARED, "cmu_pairs", "61_12_scaled.bvh")
+
+
+@pytest.mark.skipif(not os.path.exists(PAIR_A), reason="shared salsa pairs not beside the repository")
+def test_interaction_infill_without_ckpt_on_the_dancers_files_as_given(tmp_path):
+    """The salsa takes as captured (120 Hz, 43 joints, 1/128 units): one BVH per dancer on the input rig and
+    unit, and one picture holding both dancers."""
+    from inbetween_jax.cli import main
+    from inbetween_jax.data import read_bvh
+    _shipped_or_skip("interaction")
+    out = tmp_path / "out"
+    assert main(["infill", "--model", "interaction", "--a", f"{PAIR_A}:400", "--b", f"{PAIR_B}:400",
+                 "--key-a", f"{PAIR_A}:600", "--key-b", f"{PAIR_B}:600", "--frames", "49", "--samples", "1",
+                 "--out", str(out), "--preview"]) == 0
+    assert (out / "sample_00_pair_sheet.png").exists()
+    for path, name in ((PAIR_A, "sample_00_A.bvh"), (PAIR_B, "sample_00_B.bvh")):
+        src, m = read_bvh(path), read_bvh(str(out / name))
+        assert m.skeleton.names == src.skeleton.names and m.num_frames == 51
+        assert np.isfinite(m.local_quats).all() and np.isfinite(m.root_pos).all()
+        # in the file's own unit (1 unit ~ 1.28 m): the root stays near the captured hip height
+        assert 0.4 < float(np.median(m.root_pos[:, 1])) < 0.9
+        np.testing.assert_allclose(m.root_pos[0], src.root_pos[400], atol=1e-3)
+        np.testing.assert_allclose(m.root_pos[-1], src.root_pos[600], atol=1e-3)
