@@ -43,3 +43,16 @@ def test_a_second_selection_scores_only_new_checkpoints(tmp_path):
     seen = []
     out = select_checkpoint(run_dir, "cmu", lambda r: seen.append(r.step) or 0.4, "val L2P", log=None)
     assert seen == [750] and out["step"] == 750
+
+
+def test_an_unreadable_checkpoint_is_skipped_not_fatal(tmp_path):
+    from inbetween_jax.train.run import RunError
+    run_dir = _fake_run(tmp_path, [250, 500])
+
+    def score(r):
+        if r.step == 500:
+            raise RunError("checkpoints/500: cannot restore the checkpoint (missing metadata)")
+        return 1.0
+
+    out = select_checkpoint(run_dir, "cmu", score, "val L2P", log=None)
+    assert out["step"] == 250 and list(out["scores"]) == ["250"]

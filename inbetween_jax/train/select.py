@@ -32,14 +32,22 @@ def select_checkpoint(run_dir: str, source: str, score_fn: Callable, metric: str
                       log: Callable[[str], None] | None = print) -> dict:
     """Score each checkpoint of ``run_dir`` with ``score_fn(run) -> float`` (lower is better) on ``source``'s
     validation split; record and return ``{"metric", "split", "source", "scores": {step: score}, "step"}``."""
-    from inbetween_jax.train.run import _checkpoint_steps, load_run
+    from inbetween_jax.train.run import RunError, _checkpoint_steps, load_run
     steps = _checkpoint_steps(os.path.join(run_dir, "checkpoints"))
     known = _known_scores(run_dir, source, metric)   # steps scored by an earlier selection are not scored again
     scores = {}
     for step in steps:
         if step == 0:
             continue
-        scores[step] = known[step] if step in known else float(score_fn(load_run(run_dir, step)))
+        if step in known:
+            scores[step] = known[step]
+            continue
+        try:
+            scores[step] = float(score_fn(load_run(run_dir, step)))
+        except RunError as err:   # e.g. a checkpoint left unfinished by a killed run: not a candidate
+            if log:
+                log(f"validation: step {step}: skipped ({err})")
+            continue
         if log:
             log(f"validation: step {step}: {metric} {scores[step]:.4f}")
     if not scores:
