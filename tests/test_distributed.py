@@ -24,6 +24,12 @@ STEPS, STOP = 6, 3          # the 2-process run stops after the checkpoint at ST
 BATCH, GAP, HIDDEN = 8, 10, 32
 
 
+def default_sigint() -> None:
+    """In a child before exec: SIGINT unblocked and at its default action."""
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _child_env() -> dict:
     path = os.pathsep.join([ROOT, HERE] + [p for p in [os.environ.get("PYTHONPATH")] if p])
     return {"PYTHONPATH": path, "JAX_PLATFORMS": "cpu", "XLA_FLAGS": ""}
@@ -164,7 +170,10 @@ def test_launch_local_ctrl_c_stops_every_process(tmp_path):
     code = ("import sys; from inbetween_jax.train.distributed import launch_local; "
             f"sys.exit(launch_local(2, ['--sleep', {str(tmp_path)!r}], module='test_distributed', "
             f"env={_child_env()!r}))")
-    launcher = subprocess.Popen([sys.executable, "-c", code], env=dict(os.environ, **_child_env()), cwd=ROOT)
+    # the launcher as a terminal would start it: an earlier test's CLI call may have left SIGINT blocked in
+    # this process (inbetween_jax.cli.interrupt), and a child inherits the blocked mask
+    launcher = subprocess.Popen([sys.executable, "-c", code], env=dict(os.environ, **_child_env()), cwd=ROOT,
+                                preexec_fn=default_sigint)
     deadline = time.monotonic() + 60
     while len(os.listdir(tmp_path)) < 2 and time.monotonic() < deadline:
         time.sleep(0.1)

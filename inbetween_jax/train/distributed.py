@@ -142,6 +142,13 @@ def _exit_code(rc: int) -> int:
     return 128 - rc if rc < 0 else rc      # killed by signal s -> 128 + s, as a shell reports it
 
 
+def _unblock_sigint() -> None:
+    """In a child before exec: the CLI's Ctrl-C watcher (:mod:`inbetween_jax.cli.interrupt`) blocks SIGINT in
+    the launcher, and a child would inherit that mask and never see the SIGINT it is stopped with."""
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
 def launch_local(num_processes: int, argv: Sequence[str], module: str = "inbetween_jax.cli",
                  env: Mapping[str, str] | None = None, grace_s: float = 5.0) -> int:
     """Run ``python -m module *argv`` as ``num_processes`` cooperating local processes; returns an exit code.
@@ -167,10 +174,11 @@ def launch_local(num_processes: int, argv: Sequence[str], module: str = "inbetwe
         for pid in range(n):
             child_env = dict(base, **{ENV_PROCESS_ID: str(pid)})
             if pid == 0:
-                procs.append(subprocess.Popen(cmd, env=child_env))
+                procs.append(subprocess.Popen(cmd, env=child_env, preexec_fn=_unblock_sigint))
             else:
                 logs.append(tempfile.TemporaryFile())
-                procs.append(subprocess.Popen(cmd, env=child_env, stdout=subprocess.DEVNULL, stderr=logs[-1]))
+                procs.append(subprocess.Popen(cmd, env=child_env, stdout=subprocess.DEVNULL, stderr=logs[-1],
+                                              preexec_fn=_unblock_sigint))
         while True:
             codes = [p.poll() for p in procs]
             failed = [(pid, c) for pid, c in enumerate(codes) if c not in (None, 0)]
