@@ -295,6 +295,36 @@ def test_residual_untrained_is_linear_fill(motion, variant):
     np.testing.assert_array_equal(y2[m < 0.5], y3[m < 0.5])
 
 
+def test_skips_unet_switch(motion):
+    """model.skips: odd lengths keep their shape, the untrained residual model is still exactly linear fill, the
+    decoder sees the encoder's features (a change in one input frame reaches the output through the skips even
+    when the bottleneck is cut; without skips it does not), and other variants refuse the switch."""
+    x = _clips(motion)
+    m = _real_masks(x, motion.skeleton.num_joints)
+    cfg = apply_overrides(_cfg("cae"), ["model.skips=true"])
+    p = cae.init_params(jax.random.key(0), cfg, x.shape[1])
+    assert p["dec"][-1][1]["w"].shape[2] == 2 * p["dec"][-1][0]["w"].shape[3]   # concat doubles the channels
+    for t in (37, 241):
+        assert cae.apply(p, jnp.zeros((1, x.shape[1], t)), cfg).shape == (1, x.shape[1], t)
+    res = apply_overrides(cfg, ["model.residual=true"])
+    pr = cae.init_params(jax.random.key(0), res, x.shape[1])
+    y = np.asarray(cae.apply(pr, jnp.asarray(x * m), res, jnp.asarray(m)))
+    assert np.array_equal(y, np.asarray(cm.linear_prefill(x * m, m)))
+    # cut the bottleneck (zero the innermost decoder unit's weights): only the skips can carry the input
+    cut = jax.tree.map(lambda a: a, p)
+    cut["dec"][0] = jax.tree.map(jnp.zeros_like, cut["dec"][0])
+    x0 = jnp.asarray(x[:1])
+    x1 = x0.at[0, :, 20].add(1.0)
+    change = np.abs(np.asarray(cae.apply(cut, x1, cfg) - cae.apply(cut, x0, cfg)))
+    assert change.max() > 1e-3
+    plain = _cfg("cae")
+    pc = cae.init_params(jax.random.key(0), plain, x.shape[1])
+    pc["dec"][0] = jax.tree.map(jnp.zeros_like, pc["dec"][0])
+    assert float(jnp.abs(cae.apply(pc, x1, plain) - cae.apply(pc, x0, plain)).max()) == 0.0
+    with pytest.raises(ValueError, match="skips"):
+        cae.param_shapes(apply_overrides(_cfg("vanilla"), ["model.skips=true"]), x.shape[1])
+
+
 def test_gap_weight_loss():
     from inbetween_jax.models.cae.losses import l1_loss, weighted_l1
     pred, target = jnp.zeros((1, 2, 4)), jnp.array([[[1.0, 1.0, 3.0, 3.0], [1.0, 1.0, 1.0, 1.0]]])
@@ -328,7 +358,8 @@ def test_presets_improved_matches_cpu_budget():
     for c in (cpu, paper):
         assert not (c.model.residual or c.model.paste_known or c.data.mask.eval_matched)
         assert c.loss.gap_weight == 1.0 and c.train.lr_schedule == "constant" and learning_rate(c.train) == 1e-3
-    assert imp.model.residual and imp.model.paste_known and imp.data.mask.eval_matched and imp.loss.gap_weight > 1
+    assert imp.model.residual and imp.model.paste_known and imp.model.skips and imp.data.mask.eval_matched
+    assert imp.loss.gap_weight > 1 and not (cpu.model.skips or paper.model.skips)
     sched = learning_rate(imp.train)
     assert float(sched(imp.train.warmup_steps)) == pytest.approx(1e-3)
     assert float(sched(imp.train.num_steps)) == pytest.approx(1e-3 * imp.train.lr_final)

@@ -27,6 +27,9 @@ entries by linear interpolation (:func:`~inbetween_jax.models.cae.masks.linear_p
 the pre-filled image and the mask as two input channels (``holden1d``: 2D feature channels) and returns the
 pre-filled image plus the network's output.  The last conv is zero-initialised, so an untrained model
 returns the linear fill.  ``cfg.model.paste_known`` then replaces the known entries by the input's.
+``cfg.model.skips`` (CAE only; not the paper) adds U-Net skip connections: each decoder unit concatenates the
+matching encoder unit's activation before its pool to its first conv's output, so frame-level detail need not
+pass the 3 x 8 bottleneck.
 
 Odd sizes (pad / crop).  Pooling is "ceil" pooling: before each 2x pooling an odd axis is padded by one
 row / frame with ``-inf`` (so the pad never wins the max; TF's ``padding='SAME'``).  Each decoder unit
@@ -152,9 +155,11 @@ def param_shapes(cfg, num_features: int) -> dict:
     ins = (cin,) + channels[:-1]
     reps = 2 if m.variant == "cae" else 1
     enc = [[_layer(ci if r == 0 else co, co) for r in range(reps)] for ci, co in zip(ins, channels)]
-    dec = []   # decoder unit u mirrors encoder unit L-1-u: c_in -> (c_in ->) target
+    if m.skips and m.variant != "cae":
+        raise ValueError(f"model.skips needs model.variant=cae, not {m.variant!r}")
+    dec = []   # decoder unit u mirrors encoder unit L-1-u: c_in -> (c_in [+ skip] ->) target
     for ci, co in zip(reversed(channels), reversed(ins)):
-        dec.append([_layer(ci, ci), _layer(ci, co)] if reps == 2 else [_layer(ci, co)])
+        dec.append([_layer(ci, ci), _layer(ci * (2 if m.skips else 1), co)] if reps == 2 else [_layer(ci, co)])
     return {"dec": dec, "enc": enc}
 
 
@@ -185,27 +190,29 @@ def conv(layer: dict, x):
     return conv_same(x, layer["w"]) + layer["b"]
 
 
-def encode(params: dict, x, cfg):
+def encode(params: dict, x, cfg, with_skips: bool = False):
     """CAE / Vanilla AE encoder: (B, D, T) or (B, D, T, C) -> (latent (B, h, w, C'), sizes [(H, W) per level,
-    input first])."""
+    input first]) [, skips: each CAE unit's activation before its pool, (B, H_k, W_k, C_k), when ``with_skips``]."""
     m = cfg.model
     h = x[..., None] if x.ndim == 3 else x
-    sizes = [h.shape[1:3]]
+    sizes, skips = [h.shape[1:3]], []
     for unit in params["enc"]:
         pool_h = h.shape[1] >= 3
         if m.variant == "cae":
             for layer in unit:
                 h = jax.nn.leaky_relu(conv(layer, h), float(m.leak))
+            skips.append(h)
             h = max_pool_ceil(h, pool_h)
         else:  # strided conv: stride-1 SAME conv sampled at even positions (ceil(n/2) outputs)
             h = jax.nn.leaky_relu(conv(unit[0], h), float(m.leak))
             h = h[:, ::2 if pool_h else 1, ::2]
         sizes.append(h.shape[1:3])
-    return h, sizes
+    return (h, sizes, skips) if with_skips else (h, sizes)
 
 
-def decode(params: dict, z, sizes, cfg):
-    """CAE / Vanilla AE decoder: latent (B, h, w, C) + encoder sizes -> (B, D, T)."""
+def decode(params: dict, z, sizes, cfg, skips=None):
+    """CAE / Vanilla AE decoder: latent (B, h, w, C) + encoder sizes -> (B, D, T).  ``skips`` (U-Net,
+    ``model.skips``): the encoder's pre-pool activations, concatenated to each unit's first conv output."""
     leak = float(cfg.model.leak)
     h = z
     n = len(params["dec"])
@@ -216,6 +223,9 @@ def decode(params: dict, z, sizes, cfg):
             h = conv(layer, h)
             if r == 0:
                 h = h[:, :th, :tw]
+                if skips is not None:
+                    h = jnp.concatenate([jax.nn.leaky_relu(h, leak), skips[n - 1 - u]], axis=-1)
+                    continue
             if not (u == n - 1 and r == len(unit) - 1):
                 h = jax.nn.leaky_relu(h, leak)
     return h[..., 0]
@@ -235,6 +245,9 @@ def _holden(params: dict, x):
 def _network(params: dict, x, cfg):
     if cfg.model.variant == "holden1d":
         return _holden(params, x if x.ndim == 3 else jnp.concatenate([x[..., 0], x[..., 1]], axis=1))
+    if cfg.model.skips:
+        z, sizes, skips = encode(params, x, cfg, with_skips=True)
+        return decode(params, z, sizes, cfg, skips)
     z, sizes = encode(params, x, cfg)
     return decode(params, z, sizes, cfg)
 
