@@ -40,10 +40,11 @@ def test_presets_switches_off_in_paper_and_cpu_on_in_improved():
         c = get_config(name)
         assert (c.data.key_inside, c.model.key_offsets, c.model.residual, c.model.tta) == (0.0, False, False, False)
         assert (c.loss.adv_start, c.loss.adv_ramp, c.data.ar_steps, c.data.ss_max) == (0, 0, 3, 0.5)
+        assert c.loss.w_pos == 1.0
     imp, cpu = get_config("improved"), get_config("cpu")
     assert imp.data.key_inside > 0 and imp.model.key_offsets and imp.model.residual and imp.model.tta
     assert imp.data.ss_max == 1.0 and imp.data.ar_steps > cpu.data.ar_steps and imp.loss.adv_start > 0
-    assert imp.model.pjd_frames == imp.data.ar_steps * imp.data.n_pred
+    assert imp.model.pjd_frames == imp.data.ar_steps * imp.data.n_pred and imp.loss.w_pos > 1
     assert imp.train == cpu.train
     same = ("dct_coeffs", "conv_channels", "hidden", "gcn_layers", "latent", "refiner_hidden", "pae_hidden")
     assert all(getattr(imp.model, k) == getattr(cpu.model, k) for k in same)
@@ -195,3 +196,46 @@ def test_infill_honours_frames_with_tta(windows, train_pairs):
         gap_cm = np.linalg.norm(out[0, :, -1, :, :3] - key[..., :3], axis=-1).mean()
         step_cm = np.linalg.norm(out[0, :, -2, :, :3] - out[0, :, -1, :, :3], axis=-1).mean()
         assert gap_cm < 1.5 * step_cm, (n, gap_cm, step_cm)                      # one lerp step from the key
+
+
+def test_residual_refiner_starts_as_identity(windows):
+    """With model.residual the refiner's output layer starts at zero (the untrained rollout is the lerp, refiner
+    on); the paper's refiner is not the identity."""
+    lerp_like = jnp.asarray(windows["x"][:, :, 20:30])
+    for cfg, identity in ((TIMED, True), (TINY, False)):
+        params = ia.init_params(jax.random.key(0), cfg, lerp_like.shape[3])
+        out = np.asarray(ia.refine(params["ref"], lerp_like, cfg))
+        assert np.allclose(out, np.asarray(lerp_like), atol=1e-4) == identity
+
+
+def test_bench_model_method_is_told_the_true_or_guessed_gap(windows, train_pairs):
+    """The bench's model rows tell a timed model the window's own gap (30 here) even when the rollout is longer
+    (the stop-rule rollout runs 2x the gap), or the guessed-length baseline's guess."""
+    from inbetween_jax.evaluation.interaction import guess_gap_length
+    from inbetween_jax.models.interaction.bench import _model_method
+    fa = np.asarray(train_pairs[0].forward_axis, np.float64)
+    J = windows["x"].shape[3]
+    trained = Trained(TIMED, ia.init_params(jax.random.key(0), TIMED, J), J, fa, None, 0, "")
+    kp = np.asarray(windows["keypose"])
+    long = _model_method(trained)(windows, 6, 1, jax.random.key(0))[0]        # 60 frames for a 30-frame gap
+    d = np.asarray(ia.keypose_distance(jnp.asarray(long[:, :, 30]), kp)).max(1)
+    assert long.shape[2] == 60 and np.all(d < 1e-3)                           # frame 31 is the keyframe
+    guess = guess_gap_length(windows)
+    assert np.any(guess != 30)
+    guessed = _model_method(trained, gap="guess")(windows, 6, 1, jax.random.key(0))[0]
+    for i in np.flatnonzero(guess < 59):
+        di = np.asarray(ia.keypose_distance(jnp.asarray(guessed[i:i + 1, :, guess[i]]), kp[i:i + 1])).max()
+        assert di < 1e-3
+    with pytest.raises(ValueError, match="gap"):
+        _model_method(trained, gap="oracle")
+
+
+def test_position_weight_in_the_mse():
+    """loss.w_pos scales only the position channels' squared error; 1 is the plain MSE."""
+    from inbetween_jax.models.interaction.losses import mse
+    target = jnp.zeros((1, 2, 3, 4, 9))
+    pos_err = target.at[..., 0].set(0.1)                       # 10 cm in x everywhere
+    rot_err = target.at[..., 5].set(0.1)
+    assert float(mse(pos_err, target)) == pytest.approx(0.01 / 9)
+    assert float(mse(pos_err, target, 20.0)) == pytest.approx(20 * 0.01 / 9)
+    assert float(mse(rot_err, target, 20.0)) == pytest.approx(float(mse(rot_err, target)))

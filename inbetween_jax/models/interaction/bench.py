@@ -49,20 +49,29 @@ def _restore(path):
     return load(load_run(path))
 
 
-def _model_method(trained, use_refiner=None):
-    """Windows -> (S, B, 2, steps * l, J, 9) rollouts of ``trained`` (no early stop)."""
+def _model_method(trained, use_refiner=None, gap="true"):
+    """Windows -> (S, B, 2, steps * l, J, 9) rollouts of ``trained`` (no early stop).
+
+    ``gap`` is what a timing-conditioned model (``model.tta`` / ``model.residual``) is told about the gap:
+    ``"true"`` -- the window's own transition length L (whatever the rollout length, so the stop-rule rollout of
+    2 L frames still aims at frame L + 1); ``"guess"`` -- :func:`~inbetween_jax.evaluation.interaction.guess_gap_length`,
+    the same guess the guessed-length interpolation baseline uses."""
     import jax
-    from inbetween_jax.evaluation.interaction import N_INPUT
+    from inbetween_jax.evaluation.interaction import N_INPUT, guess_gap_length
     from inbetween_jax.models.interaction.model import sample_rollouts
     cfg, fa = trained.cfg, trained.forward_axis.astype(np.float32)
+    if gap not in ("true", "guess"):
+        raise ValueError(f"gap must be 'true' or 'guess', not {gap!r}")
     cache = {}
 
     def method(b, steps, samples, key):
         if (steps, samples) not in cache:
-            cache[(steps, samples)] = jax.jit(lambda p, w, kp, R, t, k: sample_rollouts(
-                p, w, kp, R, t, k, cfg, fa, steps, samples, threshold=-1.0, use_refiner=use_refiner)[0])
+            cache[(steps, samples)] = jax.jit(lambda p, w, kp, R, t, g, k: sample_rollouts(
+                p, w, kp, R, t, k, cfg, fa, steps, samples, threshold=-1.0, use_refiner=use_refiner, gap=g)[0])
+        B, L = b["x"].shape[0], b["x"].shape[2] - N_INPUT - 1
+        g = np.full(B, L, np.float32) if gap == "true" else guess_gap_length(b).astype(np.float32)
         return np.asarray(cache[(steps, samples)](trained.params, b["x"][:, :, :N_INPUT], b["keypose"], b["rel_R"],
-                                                  b["rel_t"], key))
+                                                  b["rel_t"], g, key))
     return method
 
 
@@ -137,6 +146,10 @@ def run(source, results_dir: str, run_dir, quick: bool = False) -> dict:
         ours = f"Ours (cross-space, step {trained.step})"
         methods[ours] = ("interaction", _model_method(trained))
         stop_rule[ours] = methods[ours][1]
+        if cfg.model.tta or cfg.model.residual:
+            guessed = f"Ours, gap length guessed (step {trained.step})"
+            methods[guessed] = ("interaction", _model_method(trained, gap="guess"))
+            stop_rule[guessed] = methods[guessed][1]
         if cfg.model.refiner:
             methods["w/o Motion Refiner (same checkpoint, refiner off)"] = ("interaction",
                                                                           _model_method(trained, False))

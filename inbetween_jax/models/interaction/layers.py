@@ -94,12 +94,16 @@ def reparameterize(mu, logvar, key):
 
 
 class Refiner(nnx.Module):
-    """Motion refiner on segments x (B, L, J, 9) -> refined (B, L, J, 9) (DCT autoencoder + GCN)."""
+    """Motion refiner on segments x (B, L, J, 9) -> refined (B, L, J, 9) (DCT autoencoder + GCN).
 
-    def __init__(self, num_joints: int, L: int, H: int, Z: int, conv_ch: int, n_gcn: int, *, rngs: nnx.Rngs):
+    ``identity_init``: the decoder's output layer starts at zero, so the untrained refiner returns its input."""
+
+    def __init__(self, num_joints: int, L: int, H: int, Z: int, conv_ch: int, n_gcn: int, *, rngs: nnx.Rngs,
+                 identity_init: bool = False):
         self.L = L
+        zero = dict(out_init=nnx.initializers.zeros) if identity_init else {}
         self.enc = ConvGCN(num_joints, L, 9, 0, H, Z, conv_ch, n_gcn, rngs=rngs)
-        self.dec = ConvGCN(num_joints, L, Z, 0, H, L * 9, conv_ch, n_gcn, conv=False, rngs=rngs)
+        self.dec = ConvGCN(num_joints, L, Z, 0, H, L * 9, conv_ch, n_gcn, conv=False, rngs=rngs, **zero)
 
     def __call__(self, x):
         B, L, J, C = x.shape

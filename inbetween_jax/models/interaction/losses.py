@@ -19,9 +19,14 @@ __all__ = ["mse", "kl_divergence", "generator_adversarial", "discriminator_loss"
            "scheduled_sampling_prob", "adversarial_weight", "generator_objective", "discriminator_objective"]
 
 
-def mse(pred, target):
-    """Mean squared error over all elements: [B, 2, N, J, 9] x2 -> scalar."""
-    return jnp.mean((pred - target) ** 2)
+def mse(pred, target, w_pos: float = 1.0):
+    """Mean squared error over all elements: [B, 2, N, J, 9] x2 -> scalar.  ``w_pos`` weighs the position
+    channels (the first 3 of 9, metres) ``w_pos`` times; 1 is the paper's plain MSE."""
+    err = (pred - target) ** 2
+    if float(w_pos) == 1.0:
+        return jnp.mean(err)
+    w = jnp.concatenate([jnp.full((3,), float(w_pos)), jnp.ones((err.shape[-1] - 3,))]).astype(err.dtype)
+    return jnp.mean(err * w)
 
 
 def kl_divergence(mu, logvar):
@@ -79,12 +84,12 @@ def generator_objective(params, batch, key, cfg, forward_axis):
     p_pred = scheduled_sampling_prob(batch["step"], cfg)
     pred, coarse, mu, logvar = ar_predict(params["gen"], batch, key, cfg, forward_axis, p_pred)
     gt = batch["x"][:, :, T:T + N]
-    mse_ = mse(pred, gt)
-    coarse_mse = mse(coarse, gt)
+    mse_ = mse(pred, gt, w.w_pos)
+    coarse_mse = mse(coarse, gt, w.w_pos)
     kl = kl_divergence(mu, logvar) if m.interaction else jnp.zeros(())
     total = w.w_mse * mse_ + w.w_coarse * coarse_mse + w.w_kl * kl
     refined = refine(params["ref"], segments(sg(pred), P, l), cfg)
-    ref_loss = mse(refined, segments(gt, P, l))
+    ref_loss = mse(refined, segments(gt, P, l), w.w_pos)
     total = total + w.w_refine * ref_loss
     metrics = dict(mse=mse_, coarse_mse=coarse_mse, kl=kl, refine=ref_loss, p_pred=p_pred)
     aux = {}

@@ -88,7 +88,7 @@ def _modules(key, num_joints: int, cfg) -> dict:
     return dict(
         gen=Generator(num_joints, cfg, rngs=nnx.Rngs(ks[0])),
         ref=Refiner(num_joints, d.n_pred, m.refiner_hidden, m.refiner_latent, m.conv_channels, m.gcn_layers,
-                    rngs=nnx.Rngs(ks[1])),
+                    rngs=nnx.Rngs(ks[1]), identity_init=m.residual),
         pae=PeriodicAE(pjd_channels(num_joints, cfg), m.pjd_frames, m.pae_channels, m.pae_hidden,
                        rngs=nnx.Rngs(ks[2])),
         disc=Discriminator(m.pjd_frames, m.pae_channels, m.disc_hidden, rngs=nnx.Rngs(ks[3])))
