@@ -295,9 +295,10 @@ def _load_npz(path: str):
 
 
 def _progress(items, desc):
+    """A file-reading progress bar, only on a terminal (a log file gets no carriage-return noise)."""
     try:
         from tqdm import tqdm
-        return tqdm(items, desc=desc, leave=False, disable=len(items) < 4)
+        return tqdm(items, desc=desc, leave=False, disable=len(items) < 4 or not sys.stderr.isatty())
     except ImportError:  # pragma: no cover
         return items
 
