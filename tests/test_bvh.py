@@ -206,3 +206,14 @@ def test_written_bvh_read_by_independent_reader(tmp_path, source):
         root.loadPose(frame)
         theirs = np.array([list(j.PositionWorld) for j in joints])
         np.testing.assert_allclose(theirs, gp[frame, idx], atol=1e-3)
+
+
+def test_scaled_motion_scales_every_joint_position():
+    """Motion.scaled(s): world joint positions times s (offsets and local positions alike), rotations kept;
+    scaling back restores the motion."""
+    m = read_bvh(CMU_FILE, 0, 20)
+    big = m.scaled(128.0)
+    np.testing.assert_allclose(big.global_positions(), 128.0 * m.global_positions(), rtol=1e-12, atol=1e-9)
+    assert np.array_equal(big.local_quats, m.local_quats) and big.skeleton.names == m.skeleton.names
+    np.testing.assert_allclose(big.scaled(1 / 128.0).local_pos, m.local_pos, rtol=1e-12)
+    assert not np.allclose(big.skeleton.offsets[1:], m.skeleton.offsets[1:])

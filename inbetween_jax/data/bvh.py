@@ -61,6 +61,11 @@ class Motion:
                                    local_pos=self.local_pos[start:stop:step],
                                    frame_time=self.frame_time * step)
 
+    def scaled(self, factor: float) -> "Motion":
+        """The same motion in another length unit: bone offsets and local positions times ``factor``."""
+        return dataclasses.replace(self, local_pos=self.local_pos * factor,
+                                   skeleton=dataclasses.replace(self.skeleton, offsets=self.skeleton.offsets * factor))
+
 
 def read_bvh(path, start: Optional[int] = None, end: Optional[int] = None) -> Motion:
     """Read a BVH file (any skeleton, any channel order) into a :class:`Motion` (frames [start, end)).

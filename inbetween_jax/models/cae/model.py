@@ -245,11 +245,8 @@ def _holden(params: dict, x):
 def _network(params: dict, x, cfg):
     if cfg.model.variant == "holden1d":
         return _holden(params, x if x.ndim == 3 else jnp.concatenate([x[..., 0], x[..., 1]], axis=1))
-    if cfg.model.skips:
-        z, sizes, skips = encode(params, x, cfg, with_skips=True)
-        return decode(params, z, sizes, cfg, skips)
-    z, sizes = encode(params, x, cfg)
-    return decode(params, z, sizes, cfg)
+    z, sizes, skips = encode(params, x, cfg, with_skips=True)
+    return decode(params, z, sizes, cfg, skips if cfg.model.skips else None)
 
 
 def apply(params: dict, x, cfg, mask=None):

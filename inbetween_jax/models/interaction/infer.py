@@ -174,10 +174,7 @@ def _on_run_rig(motion, path: str, skel, fps, notes: list):
         notes.append(prep.note)
     factor = 1.0 if skel is None else float(unit_factor(prep.motion.skeleton, skel))
     if abs(factor - 1.0) > 0.02:
-        m = prep.motion
-        scaled = dataclasses.replace(m, skeleton=dataclasses.replace(m.skeleton, offsets=m.skeleton.offsets * factor),
-                                     local_pos=m.local_pos * factor)
-        prep = dataclasses.replace(prep, motion=scaled)
+        prep = dataclasses.replace(prep, motion=prep.motion.scaled(factor))
         notes.append(f"{path}: positions scaled by {factor:.4g} to the checkpoint's unit (and back on output)")
     else:
         factor = 1.0
@@ -187,9 +184,7 @@ def _on_run_rig(motion, path: str, skel, fps, notes: list):
 def _on_user_rig(motion, prep, start: int, kprep, key_frame: int, factor: float):
     """A generated Motion on the run's rig and unit -> the user's file rig and unit (at the run's rate)."""
     if factor != 1.0:
-        motion = dataclasses.replace(motion, local_pos=motion.local_pos / factor,
-                                     skeleton=dataclasses.replace(motion.skeleton,
-                                                                  offsets=motion.skeleton.offsets / factor))
+        motion = motion.scaled(1.0 / factor)
     if prep.match is None:
         return motion
     from inbetween_jax.data.retarget import expand
