@@ -8,9 +8,10 @@ samples diverse transitions.
 
 Files::
 
-    config.py          Config(model, data, loss, train); PRESETS paper / cpu / tiny
+    config.py          Config(model, data, loss, train); PRESETS improved / improved-velocity / cpu / paper / tiny
     features.py        frames -> network inputs, feature statistics, TrainData, foot-phase labels
     layers.py          dense / MLP / LSTM / mixture-of-experts on plain param dicts, time-to-arrival embedding
+    base_path.py       the residual decoder's base: Slerp / lerp, or Hermite from the start's velocity
     model.py           init_params, phase network, encoder / decoder step, bi-directional rollout, stitching, sample
     losses.py          state / KL / FK / stitching / phase losses, discriminators and LSGAN losses
     deferred_grads.py  training-only speed-up: the largest weight gradients as one matmul after the scan

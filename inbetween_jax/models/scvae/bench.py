@@ -8,6 +8,7 @@ with Slerp dashed, as Fig. 6 of the S-CVAE paper.  Without a trained run the sec
 """
 from __future__ import annotations
 
+import functools
 import os
 import time
 
@@ -80,7 +81,7 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
             r["method"] = variant
     md = markdown_table(rows, cols, f"S-CVAE, Table 1 layout ({len(bench)} windows, {NUM_SAMPLES} samples)")
     official = official_rows(trained, bench, x_mean, x_std, variant)
-    vel = "with" if trained.cfg.model.start_velocity else "without"
+    vel = "with" if (trained.cfg.model.start_velocity or trained.cfg.model.base_velocity) else "without"
     md += "\n\n" + markdown_table(official, ("L2Q", "L2P", "NPSS"),
                                   f"S-CVAE, official LaFAN1 protocol (10 past frames; the model uses them {vel} the "
                                   f"past frame's root velocity; metrics averaged over {NUM_SAMPLES} samples)")
@@ -94,27 +95,37 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
                + flat_rows([r for r in rows if r["method"] != "Slerp"], "table1", data, model="scvae",
                            variant=run_.preset)
                + flat_rows([r for r in official if r["method"] == variant], "official", data, model="scvae",
-                           variant=run_.preset))
+                           variant=run_.preset)
+               + flat_rows([r for r in official if r["method"] == VELOCITY_BASELINE], "official", data,
+                           model="slerp_velocity"))
     return {"markdown": md, "rows": records, "table": rows, "step": trained.step, "source": source,
             "windows": len(bench), "plots": [plot]}
 
 
 OFFICIAL_LENGTHS = (5, 15, 30, 45)
+VELOCITY_BASELINE = "Slerp + start velocity (Hermite)"
 
 
 def official_rows(trained, bench, x_mean, x_std, name: str) -> list:
-    """Interpolation and the model under the official LaFAN1 protocol (10 past frames, L2Q / L2P / NPSS at
-    5 / 15 / 30 / 45 frames); the model's errors are the mean over ``NUM_SAMPLES`` samples."""
+    """Interpolation, interpolation continuing the last past frame's velocity
+    (:func:`~inbetween_jax.baselines.velocity_interpolate_transition`) and the model under the official LaFAN1
+    protocol (10 past frames, L2Q / L2P / NPSS at 5 / 15 / 30 / 45 frames); the model's errors are the mean over
+    ``NUM_SAMPLES`` samples."""
     from inbetween_jax.evaluation import official_baseline_table
     from inbetween_jax.evaluation.lafan1 import official_errors
     from inbetween_jax.models.scvae import infer
     lengths = [n for n in OFFICIAL_LENGTHS if n <= trained.cfg.data.trans_max and N_PAST + n < bench.window]
+    from inbetween_jax.baselines import velocity_interpolate_transition
     rows = [r for r in official_baseline_table(bench, x_mean, x_std, lengths, N_PAST) if r["method"] != "Zero-velocity"]
+    for n in lengths:   # the residual base of ``model.base_velocity``, on its own (nothing learned)
+        q, r = velocity_interpolate_transition(bench.local_quats, bench.root_pos, N_PAST, n)
+        rows.append({"method": VELOCITY_BASELINE, "frames": n, **official_errors(bench, N_PAST, n, q, r, x_mean, x_std)})
     for n in lengths:
         s = infer.sample_transitions(trained.cfg.model, trained.state, bench, N_PAST, n, NUM_SAMPLES, velocity=True)
         per = [official_errors(bench, N_PAST, n, q, r, x_mean, x_std) for q, r in zip(s["q"], s["r"])]
         rows.append({"method": name, "frames": n, **{k: float(np.mean([p[k] for p in per])) for k in per[0]}})
-    return sorted(rows, key=lambda r: (r["frames"], r["method"] != "Slerp"))
+    order = {"Slerp": 0, VELOCITY_BASELINE: 1}
+    return sorted(rows, key=lambda r: (r["frames"], order.get(r["method"], 2)))
 
 
 def per_frame_error(windows, n_past: int, n_trans: int, q, r) -> np.ndarray:
@@ -156,19 +167,28 @@ VAL_LENGTHS = (10, 30, 50)
 VAL_SAMPLES = 2
 
 
+@functools.lru_cache(maxsize=2)
+def _val_windows(source: str):
+    """The validation windows of ``source`` and their L2P statistics, read once per process (checkpoint
+    selection scores every checkpoint of a run on the same windows)."""
+    from inbetween_jax.data import l2p_stats, load_dataset
+    val = load_dataset(source, "val", window=N_PAST + max(VAL_LENGTHS) + 5, offset=20)
+    x_mean, x_std = l2p_stats(val.global_pose()[1])
+    return val, x_mean, x_std
+
+
 def val_score(run, source: str) -> float:
     """Checkpoint-selection score (lower is better): mean L2P over transitions of 10 / 30 / 50 frames on the
     validation split of ``source`` (65-frame windows at offset 20, 10 past frames; statistics of the
-    validation windows themselves), ``VAL_SAMPLES`` samples each.  Never uses test windows."""
-    from inbetween_jax.data import l2p_stats, load_dataset
+    validation windows themselves), ``VAL_SAMPLES`` samples each; a model trained with the past frame's
+    velocity gets it (the protocol it is built for).  Never uses test windows."""
     from inbetween_jax.evaluation import transition_metrics
     from inbetween_jax.models.scvae import infer
     trained = infer.load(run)
-    val = load_dataset(source, "val", window=N_PAST + max(VAL_LENGTHS) + 5, offset=20)
-    x_mean, x_std = l2p_stats(val.global_pose()[1])
+    val, x_mean, x_std = _val_windows(source)
     lengths = [n for n in VAL_LENGTHS if n <= trained.cfg.data.trans_max]
     errs = []
     for n in lengths:
-        s = infer.sample_transitions(trained.cfg.model, trained.state, val, N_PAST, n, VAL_SAMPLES)
+        s = infer.sample_transitions(trained.cfg.model, trained.state, val, N_PAST, n, VAL_SAMPLES, velocity=True)
         errs.append(transition_metrics(val, N_PAST, n, s["q"], s["r"], x_mean, x_std)["L2P"])
     return float(np.mean(errs))

@@ -28,7 +28,11 @@ Presets:
 * ``tiny`` -- small widths and a fixed 10-frame transition, for tests.
 
 ``model.start_velocity`` (off in every preset) feeds the past frame's root velocity to the forward generator,
-for protocols with more than one past frame.  ``model.deferred_wgrad`` is a speed switch only (the largest
+for protocols with more than one past frame; ``model.base_velocity`` (with ``residual``) makes the residual base
+continue the motion of the frame before the start keyframe (root and every joint, a cubic Hermite offset that
+fades into Slerp by the target, :mod:`inbetween_jax.models.scvae.base_path`).  Both together are the
+``improved-velocity`` preset: ``improved`` for the official LaFAN1 protocol (10 past frames), trained with the
+frame before each start keyframe; its one-keyframe (Table-1) rows see a zero velocity.  ``model.deferred_wgrad`` is a speed switch only (the largest
 weight gradients as one matmul after the scan, see :mod:`inbetween_jax.models.scvae.deferred_grads`); it does
 not change the losses.
 """
@@ -38,7 +42,7 @@ import dataclasses
 
 from inbetween_jax.train.config import TrainConfig
 
-PRESETS = ("improved", "cpu", "paper", "tiny")
+PRESETS = ("improved", "improved-velocity", "cpu", "paper", "tiny")
 DEFAULT_PRESET = "improved"
 
 
@@ -74,6 +78,7 @@ class ModelConfig:
     residual: bool = False         # decoder predicts offsets from the Slerp / lerp path (zero-initialised head)
     decoder_target: bool = False   # the decoder also sees the offset-to-target embedding (with tta added)
     start_velocity: bool = False   # the start keyframe carries the past frame's root velocity (official protocol)
+    base_velocity: bool = False    # residual base continues the start's velocity (Hermite, needs the past frame)
     search: int = 1                # test-time latent pair search: candidates per sample (paper: "N pairs")
 
 
@@ -124,7 +129,7 @@ class Config:
 
 
 def get_config(preset: str = DEFAULT_PRESET) -> Config:
-    """``"paper"``, ``"cpu"``, ``"improved"`` or ``"tiny"`` (see the module docstring)."""
+    """``"paper"``, ``"cpu"``, ``"improved"``, ``"improved-velocity"`` or ``"tiny"`` (module docstring)."""
     cfg = Config()
     if preset == "paper":
         return cfg
@@ -145,9 +150,14 @@ def get_config(preset: str = DEFAULT_PRESET) -> Config:
                                       log_every=25, split="fit", keep_checkpoints=0))
         if preset == "cpu":
             return cfg
-        return dataclasses.replace(
+        cfg = dataclasses.replace(
             cfg, model=dataclasses.replace(cfg.model, residual=True, decoder_target=True, search=8,
                                            discriminators=False),
             data=dataclasses.replace(cfg.data, length_mode="mixed"),
             loss=dataclasses.replace(cfg.loss, kl_reduce="mean", alpha_fk=2.0))
+        if preset == "improved":
+            return cfg
+    if preset == "improved-velocity":
+        cfg = get_config("improved")
+        return dataclasses.replace(cfg, model=dataclasses.replace(cfg.model, start_velocity=True, base_velocity=True))
     raise ValueError(f"unknown S-CVAE preset {preset!r}; choose {', '.join(PRESETS)}")

@@ -95,8 +95,8 @@ def _sample_chunk(params, stats, start, target, keys, cfg, max_length, parents):
 def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_samples: int, seed: int = 0,
                        chunk: int = 128, velocity: bool = False) -> dict:
     """Transitions between frame ``n_past - 1`` and frame ``n_past + n_trans`` of every window.
-    ``velocity`` (models trained with ``start_velocity``, protocols with more than one past frame): the start
-    keyframe carries the root velocity from frame ``n_past - 2``.
+    ``velocity`` (models trained with ``start_velocity`` / ``base_velocity``, protocols with more than one past
+    frame): the start keyframe carries frame ``n_past - 2`` (root displacement ``v``, local quaternions ``qp``).
 
     cfg: ModelConfig; state: train state (``params``, ``stats``).
     Returns q (S, B, n_trans, J, 4), r (S, B, n_trans, 3) and, for the bi-directional model, mid_f / mid_b
@@ -110,8 +110,9 @@ def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_sampl
         sl = slice(lo, lo + chunk)
         start = {"q": windows.local_quats[sl, k0], "r": windows.root_pos[sl, k0], "c": windows.contacts[sl, k0]}
         target = {"q": windows.local_quats[sl, k1], "r": windows.root_pos[sl, k1], "c": windows.contacts[sl, k1]}
-        if velocity and cfg.start_velocity and n_past >= 2:
+        if velocity and (cfg.start_velocity or cfg.base_velocity) and n_past >= 2:
             start["v"] = windows.root_pos[sl, k0] - windows.root_pos[sl, k0 - 1]
+            start["qp"] = windows.local_quats[sl, k0 - 1]
         start = jax.tree.map(jnp.asarray, start)
         target = jax.tree.map(jnp.asarray, target)
         parts.append(jax.device_get(_sample_chunk(state["params"], state["stats"], start, target, keys, cfg,

@@ -18,8 +18,9 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from inbetween_jax.geometry import quat_normalize, quat_slerp
+from inbetween_jax.geometry import quat_normalize
 from inbetween_jax.models.scvae import layers as nn
+from inbetween_jax.models.scvae.base_path import base_path, interpolation_path  # noqa: F401 (re-exported)
 from inbetween_jax.models.scvae.features import (PHASE_DIM, align_sign, dims, offset_features, reverse_time,
                                                  state_features)
 
@@ -187,8 +188,10 @@ def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, k
             taps=None):
     """Generate the transition between two keyframes ``length`` frames apart (L in the paper).
 
-    start / target: frames at times 0 and L (``v`` ignored: one keyframe carries no velocity; ``phase``
-    ignored: each generator's phase network estimates it from the keyframe).  length: int scalar (traced,
+    start / target: frames at times 0 and L (``v``, the root's displacement from the previous frame, used only
+    with ``cfg.start_velocity``; ``qp``, the previous frame's local quaternions, only with ``cfg.base_velocity``
+    (:mod:`~inbetween_jax.models.scvae.base_path`); ``phase`` ignored: each generator's phase network estimates it
+    from the keyframe).  length: int scalar (traced,
     4 <= L <= max_length).  max_length: static bound fixing every array shape.
     Forward and backward generators (``params["fwd"]``, ``params["bwd"]``) alternate inside one
     ``lax.scan`` (Eq. 3, bi-directional aligning), each producing floor(L/2)+K frames; :func:`stitch`
@@ -212,7 +215,7 @@ def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, k
     t0 = dict(target, v=zero_v)
     s0 = {n: s0[n] for n in ("q", "r", "c", "v")}
     t0 = {n: t0[n] for n in ("q", "r", "c", "v")}
-    base_q, base_r = interpolation_path(start, target, length, max_length)   # (B, T1, J, 4), (B, T1, 3)
+    base_q, base_r = base_path(start, target, length, max_length, cfg.base_velocity)   # (B, T1, J, 4), (B, T1, 3)
     s0["phase"] = phase_step(jax.lax.stop_gradient(params["fwd"]["phase"]), dict(s0, phase=jnp.zeros((b, PHASE_DIM))),
                              stats)
     carry_f = init_carry(cfg, b)
@@ -270,15 +273,6 @@ def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, k
         res["valid"] = m < length - 1
         res["out"] = forward_only(start, target, ys["fwd"], length, max_length)
     return res
-
-
-def interpolation_path(start: dict, target: dict, length, max_length: int):
-    """Slerp of local quaternions and lerp of the root between the keyframes at times 0..max_length
-    (times >= length hold the target).  Returns q (B, T1, J, 4), r (B, T1, 3), T1 = max_length + 1."""
-    w = jnp.clip(jnp.arange(max_length + 1, dtype=jnp.float32) / jnp.maximum(length, 1).astype(jnp.float32), 0, 1)
-    q = quat_slerp(start["q"][:, None], align_sign(target["q"], start["q"])[:, None], w[None, :, None])
-    r = start["r"][:, None] + w[None, :, None] * (target["r"] - start["r"])[:, None]
-    return q, r
 
 
 def seam_mismatch(fwd: dict, bwd: dict, length, h, k, stats: dict):

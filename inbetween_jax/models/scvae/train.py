@@ -39,7 +39,7 @@ def load_data(cfg, source: str, split: str = "train") -> TrainData:
     from inbetween_jax.data import load_dataset
     from inbetween_jax.data.datasets import is_lafan1, split_files, window_settings
     windows = load_dataset(source, split, window=cfg.data.window or None)
-    if cfg.data.trans_max + 2 + int(cfg.model.start_velocity) > windows.window:
+    if cfg.data.trans_max + 2 + int(cfg.model.start_velocity or cfg.model.base_velocity) > windows.window:
         raise ValueError(f"{source}: {windows.window}-frame {split} windows are too short for "
                          f"data.trans_max={cfg.data.trans_max} (at most {windows.window - 2})")
     ws = window_settings(source, split)
@@ -102,8 +102,9 @@ def make_batch(data: TrainData, idx: np.ndarray, starts: np.ndarray, length: int
     batch = {"q": data.q[rows, t], "r": data.r[rows, t], "c": data.c[rows, t],
              "phase_f": data.phase_f[rows, t], "phase_b": data.phase_b[rows, t], "p": data.p[rows, t],
              "length": np.int32(length)}
-    if velocity:
+    if velocity:   # the frame before the start keyframe: root displacement and local quaternions
         batch["v0"] = data.r[idx, starts] - data.r[idx, starts - 1]
+        batch["qp0"] = data.q[idx, starts - 1]
     return batch
 
 
@@ -116,7 +117,7 @@ def batch_fn_factory(data: TrainData, cfg):
                          f"(these have {window})")
     batch_size = cfg.train.batch_size
 
-    vel = bool(cfg.model.start_velocity)
+    vel = bool(cfg.model.start_velocity or cfg.model.base_velocity)
 
     def batch_fn(step, key):
         seed = np.asarray(jax.random.key_data(key)).astype(np.uint64)
@@ -138,7 +139,7 @@ def split_batch(batch: dict):
     take = lambda x, i: jnp.take(x, i, axis=1)
     start = {"q": batch["q"][:, 0], "r": batch["r"][:, 0], "c": batch["c"][:, 0]}
     if "v0" in batch:
-        start["v"] = batch["v0"]
+        start["v"], start["qp"] = batch["v0"], batch["qp0"]
     target = {"q": take(batch["q"], length), "r": take(batch["r"], length), "c": take(batch["c"], length)}
     gt_f = {"q": batch["q"], "r": batch["r"], "c": batch["c"], "phase": batch["phase_f"], "p": batch["p"]}
     rev = jnp.clip(length - jnp.arange(t1), 0, t1 - 1)

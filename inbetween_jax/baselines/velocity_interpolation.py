@@ -1,0 +1,77 @@
+"""Interpolation that continues the motion of the past frames: Slerp / lerp plus a cubic Hermite offset.
+
+For protocols with more than one past frame (the official LaFAN1 benchmark gives 10).  At transition time t
+(frames after the last past keyframe, L = frames between the keyframes) every channel gets
+
+    offset(t) = v0 * t * (1 - t / L)^2,   v0 = (last past frame's velocity) - (the interpolation's velocity),
+
+the cubic Hermite curve whose start tangent is the motion's and whose end tangent is the interpolation's: the
+path leaves the keyframe with the motion's velocity and reaches the target exactly.  Root: the displacement per
+frame; joints: the rotation vector of ``q_prev^-1 q`` in the joint's own frame, applied as ``q_interp *
+exp(offset)``.  No parameters, nothing learned.
+"""
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+
+from inbetween_jax.baselines.interpolation import interpolate_transition
+from inbetween_jax.geometry import quat_conj, quat_mul
+
+__all__ = ["hermite_weights", "rotation_vector", "rotation_from_vector", "velocity_offsets",
+           "velocity_interpolate_transition"]
+
+
+def hermite_weights(length, max_length: int):
+    """(T1,) ``t * (1 - t / L)^2`` at t = 0..max_length, zero from ``t = L`` on (``length`` = L)."""
+    t = jnp.arange(max_length + 1, dtype=jnp.float32)
+    s = jnp.clip(t / jnp.maximum(length, 1).astype(jnp.float32), 0.0, 1.0)
+    return t * (1.0 - s) ** 2
+
+
+def rotation_vector(q):
+    """(..., 4) unit quaternion -> (..., 3) axis * angle (angle in [0, pi], sign-safe, finite at identity)."""
+    q = q * jnp.where(q[..., :1] < 0, -1.0, 1.0)
+    s = jnp.sqrt(jnp.sum(q[..., 1:] ** 2, -1, keepdims=True) + 1e-24)
+    return 2.0 * jnp.arctan2(s, q[..., :1]) * q[..., 1:] / s
+
+
+def rotation_from_vector(v):
+    """(..., 3) axis * angle -> (..., 4) unit quaternion (inverse of :func:`rotation_vector`)."""
+    a = jnp.sqrt(jnp.sum(v ** 2, -1, keepdims=True) + 1e-24)
+    return jnp.concatenate([jnp.cos(0.5 * a), jnp.sin(0.5 * a) * v / a], -1)
+
+
+def velocity_offsets(q_prev, q0, q1, r_prev, r0, r1, length, max_length: int):
+    """Apply-ready Hermite offsets at t = 0..max_length.
+
+    q_prev / q0 / q1: (B, J, 4) local quaternions of the frame before the start keyframe, the start and the
+    target keyframe (q1 sign-aligned to q0); r_*: (B, 3) root positions.  Returns (dq (B, T1, J, 4) to
+    right-multiply onto the Slerp path, dr (B, T1, 3) to add to the lerp)."""
+    n = jnp.maximum(length, 1).astype(jnp.float32)
+    f = hermite_weights(length, max_length)
+    w_motion = rotation_vector(quat_mul(quat_conj(q_prev), q0))
+    w_interp = rotation_vector(quat_mul(quat_conj(q0), q1)) / n
+    dq = rotation_from_vector((w_motion - w_interp)[:, None] * f[None, :, None, None])
+    dr = ((r0 - r_prev) - (r1 - r0) / n)[:, None] * f[None, :, None]
+    return dq, dr
+
+
+def velocity_interpolate_transition(local_quats, root_pos, n_past: int, n_trans: int):
+    """The transition frames ``n_past .. n_past + n_trans - 1`` between keyframes ``n_past - 1`` and
+    ``n_past + n_trans``, continuing the motion of frame ``n_past - 2`` (needs ``n_past >= 2``).
+
+    local_quats: (B, T, J, 4); root_pos: (B, T, 3).  Returns (quats (B, n_trans, J, 4), root (B, n_trans, 3)),
+    float64 numpy."""
+    if n_past < 2:
+        raise ValueError(f"n_past={n_past}: the velocity path needs at least two past frames")
+    q = np.asarray(local_quats, np.float64)
+    r = np.asarray(root_pos, np.float64)
+    sl, lerp = interpolate_transition(q, r, n_past, n_trans)                     # the official interpolation
+    k0, k1, length = n_past - 1, n_past + n_trans, n_trans + 1
+    q1 = q[:, k1] * np.where(np.sum(q[:, k1] * q[:, k0], -1, keepdims=True) < 0, -1.0, 1.0)
+    dq, dr = velocity_offsets(*(jnp.asarray(x, jnp.float32) for x in (q[:, k0 - 1], q[:, k0], q1, r[:, k0 - 1],
+                                                                      r[:, k0], r[:, k1])), length, length)
+    quats = quat_mul(np.asarray(sl, np.float64), np.asarray(dq[:, 1:length], np.float64))
+    quats /= np.linalg.norm(quats, axis=-1, keepdims=True)
+    return quats, np.asarray(lerp, np.float64) + np.asarray(dr[:, 1:length], np.float64)
