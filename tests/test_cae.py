@@ -1,6 +1,8 @@
 """Convolutional inpainting AE: masks, curriculum, padding, shapes, representation, inference helpers, metrics."""
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -363,3 +365,113 @@ def test_presets_improved_matches_cpu_budget():
     sched = learning_rate(imp.train)
     assert float(sched(imp.train.warmup_steps)) == pytest.approx(1e-3)
     assert float(sched(imp.train.num_steps)) == pytest.approx(1e-3 * imp.train.lr_final)
+
+
+# ----------------------------------------------------------------------------- Hermite fill (model.fill)
+def _ref_tangents(row, known, p, q, limit):
+    """Independent tangents at the gap ends p (before) and q (after) of one row, per frame."""
+    d = (row[q] - row[p]) / (q - p)
+
+    def one_sided(i, step):     # step -1: frames before i; +1: after i
+        k1 = 0 <= i + step < len(row) and known[i + step]
+        k2 = k1 and 0 <= i + 2 * step < len(row) and known[i + 2 * step]
+        if k2:
+            return -step * (3 * row[i] - 4 * row[i + step] + row[i + 2 * step]) / 2
+        return -step * (row[i] - row[i + step]) if k1 else d
+
+    out = []
+    for m in (one_sided(p, -1), one_sided(q, 1)):
+        if limit is not None:
+            m = 0.0 if m * d <= 0 else np.sign(m) * min(abs(m), limit * abs(d))
+        out.append(m)
+    return out
+
+
+def _ref_hermite(x, mask, limit=3.0):
+    """scipy.interpolate.CubicHermiteSpline per row and gap (held at the ends, 0 for an empty row)."""
+    from scipy.interpolate import CubicHermiteSpline
+    x, mask = np.asarray(x, np.float64), np.broadcast_to(mask, x.shape) > 0.5
+    out = x.copy()
+    flat, fm, fo = x.reshape(-1, x.shape[-1]), mask.reshape(-1, x.shape[-1]), out.reshape(-1, x.shape[-1])
+    for r in range(len(flat)):
+        k = np.flatnonzero(fm[r])
+        if not len(k):
+            fo[r] = 0.0
+            continue
+        fo[r, :k[0]], fo[r, k[-1] + 1:] = flat[r, k[0]], flat[r, k[-1]]
+        for p, q in zip(k[:-1], k[1:]):
+            if q - p > 1:
+                m0, m1 = _ref_tangents(flat[r], fm[r], p, q, limit)
+                spline = CubicHermiteSpline([p, q], [flat[r, p], flat[r, q]], [m0, m1])
+                fo[r, p + 1:q] = spline(np.arange(p + 1, q))
+    return out
+
+
+@pytest.mark.parametrize("limit", [3.0, None])
+def test_hermite_fill_matches_scipy(limit):
+    """baselines.hermite_fill (NumPy and jitted jnp) = scipy's CubicHermiteSpline with the same tangents, on
+    synthetic curves with gaps of every kind: long / short, next to the clip ends, 1-known-frame sides."""
+    from inbetween_jax.baselines import hermite_fill
+    rng = np.random.default_rng(0)
+    t = np.arange(90)
+    x = np.stack([np.sin(t / 7.0 + ph) * a + 0.01 * t * c for ph, a, c in rng.normal(size=(12, 3))])[None]
+    x = np.concatenate([x, rng.normal(size=x.shape).cumsum(-1)]).astype(np.float32)   # (2, 12, 90)
+    fm = cm.gap_frames(90, [(0, 3), (10, 40), (42, 43), (45, 60), (61, 62), (80, 90)])
+    m = np.broadcast_to(fm, x.shape).copy()
+    m[1, 5] = 0                                                         # an empty row -> 0
+    m[0, 2, 20:70] = 0                                                  # a row-specific longer gap
+    want = _ref_hermite(x, m, limit)
+    got = hermite_fill(x * m, m, limit=limit)
+    assert isinstance(got, np.ndarray) and got.dtype == np.float32
+    np.testing.assert_allclose(got, want, atol=2e-5, rtol=1e-5)
+    assert np.array_equal(got[m > 0.5], x[m > 0.5]) and np.all(got[1, 5] == 0)
+    got_j = jax.jit(functools.partial(hermite_fill, limit=limit))(jnp.asarray(x * m), jnp.asarray(m))
+    np.testing.assert_allclose(np.asarray(got_j), want, atol=2e-5, rtol=1e-5)
+    assert np.array_equal(np.asarray(got_j)[m > 0.5], x[m > 0.5])
+    # the limiter matters: the unlimited cubic overshoots where the limited one does not
+    if limit is not None:
+        assert not np.allclose(hermite_fill(x * m, m, limit=None), got, atol=1e-3)
+
+
+def test_hermite_fill_straight_line_and_smooth_curve():
+    """A straight line is reproduced exactly (any gap); a smooth curve is filled better than by a line."""
+    from inbetween_jax.baselines import hermite_fill
+    t = np.arange(120, dtype=np.float32)
+    line = np.stack([2.0 + 0.3 * t, -1.0 - 0.05 * t, np.full_like(t, 4.0)])[None]
+    fm = cm.gap_frames(120, [(5, 50), (52, 53), (70, 110)])
+    for order in (1, 2):
+        np.testing.assert_allclose(hermite_fill(line * fm, fm, order=order), line, rtol=2e-6, atol=1e-5)
+        np.testing.assert_allclose(hermite_fill(line * fm, fm, limit=None, order=order), line, rtol=2e-6, atol=1e-5)
+    curve = np.sin(t / 20.0)[None, None]
+    fm2 = cm.gap_frames(120, [(40, 70)])
+    err_h = np.abs(hermite_fill(curve * fm2, fm2) - curve).max()
+    err_l = np.abs(linear_fill(curve * fm2, fm2) - curve).max()
+    assert err_h < 0.5 * err_l
+
+
+def test_residual_hermite_switch(motion):
+    """model.fill=hermite: the untrained residual model (zero-initialised output conv) returns exactly the
+    Hermite fill in the gap and the input elsewhere; the default stays linear (old run.json files and the
+    shipped weights, which have no ``fill`` key, keep meaning linear fill)."""
+    from inbetween_jax.baselines import hermite_fill
+    from inbetween_jax.models.cae.config import Config
+    from inbetween_jax.train.config import config_from_dict, config_to_dict
+    x = _clips(motion)
+    j = motion.skeleton.num_joints
+    m = _real_masks(x, j)
+    base = apply_overrides(_cfg("cae"), ["model.residual=true", "model.paste_known=true"])
+    herm = apply_overrides(base, ["model.fill=hermite"])
+    p = cae.init_params(jax.random.key(0), herm, x.shape[1])
+    y = np.asarray(cae.apply(p, jnp.asarray(x * m), herm, jnp.asarray(m)))
+    np.testing.assert_allclose(y, hermite_fill(x * m, m), atol=1e-5)
+    assert np.array_equal(y[m > 0.5], x[m > 0.5])
+    y_lin = np.asarray(cae.apply(p, jnp.asarray(x * m), base, jnp.asarray(m)))
+    assert np.array_equal(y_lin, np.asarray(cm.linear_prefill(x * m, m)))
+    assert np.abs(y - y_lin)[m < 0.5].mean() > 1e-3                     # the switch changes the fill
+    assert get_config("cpu").model.fill == get_config("paper").model.fill == "linear"
+    assert get_config("improved").model.fill == "hermite"
+    old = config_to_dict(get_config("improved"))
+    del old["model"]["fill"]                                            # a run.json written before the switch
+    assert config_from_dict(Config, old).model.fill == "linear"
+    with pytest.raises(ValueError, match="model.fill"):
+        cae.init_params(jax.random.key(0), apply_overrides(base, ["model.fill=cubic"]), x.shape[1])

@@ -177,7 +177,7 @@ def test_bench_quick_runs(tmp_path):
     _train(runs / "improved", ["model.residual=true", "model.paste_known=true", "train.num_steps=1"])
     r = bench.run("embedded", str(tmp_path / "results"), str(runs), quick=True)
     assert r["steps"] == {"holden1d": 3, "vanilla": 3, "cae": 3, "cae_residual": 1}
-    assert set(r["table1"]) == {"linear", "holden1d", "vanilla", "cae", "cae_residual"}
+    assert set(r["table1"]) == {"linear", "hermite", "holden1d", "vanilla", "cae", "cae_residual"}
     tm = r["time_matched"]
     assert [v["frames"] for v in tm["linear"]["gaps"].values()] == [30, 60, 120] and tm["linear"]["recon"] is None
     assert tm["cae_residual"]["recon"][0] == 0.0                         # known entries pasted back
@@ -190,6 +190,11 @@ def test_bench_quick_runs(tmp_path):
     assert set(r["bones"]) == {"holden1d", "vanilla", "cae", "cae_residual"}
     assert os.path.isfile(tmp_path / "results" / "cae_bench.md")
     assert "| Linear interpolation | n/a |" in r["markdown"]
+    # the Hermite fill is a baseline row beside linear fill: no reconstruction / bones, a ratio to linear
+    assert "| Hermite fill (limited cubic; baseline, not in paper) | n/a |" in r["markdown"]
+    assert tm["hermite"]["recon"] is None and r["table1"]["hermite"][0] is None and "hermite" not in r["bones"]
+    herm = [x for x in r["rows"] if x["table"] == "cae_time_matched" and x["model"] == "hermite"]
+    assert len(herm) == 3 and all(0.5 < x["value"] < 1.5 for x in herm)
     rec = [x for x in r["rows"] if x["table"] == "cae_table1" and x["variant"] == "cae" and x["frames"] == 60
            and x["metric"] == "mpjpe_cm"]
     assert len(rec) == 1 and rec[0]["model"] == "cae" and rec[0]["value"] == pytest.approx(r["table1"]["cae"][1][0])

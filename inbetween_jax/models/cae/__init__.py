@@ -6,7 +6,7 @@ missing joints.  Baseline networks: the paper's Vanilla AE and a Holden-style 1D
 config.py    presets paper / cpu / improved (default) / tiny: Config(model, data (incl. data.mask), loss, train)
 features.py  motion <-> clip rows (facing yaw, root velocity integration), normaliser, clip bank
 masks.py     training masks + gap curriculum (jnp), evaluation / inference masks and noise (NumPy)
-model.py     init_params / apply (CAE, Vanilla AE, Holden 1D AE; optional residual over linear fill)
+model.py     init_params / apply (CAE, Vanilla AE, Holden 1D AE; optional residual over a linear or Hermite fill)
 losses.py    L1 over the whole clip (gap-weighted with loss.gap_weight), L1 over the removed entries (logged)
 train.py     load_data, make_training
 infer.py     load(run), fill, process_motion (fill a user's motion, refit rotations), infill (CLI)

@@ -1,7 +1,9 @@
 """CAE benchmark: the paper's Table 1 (reconstruction / 60 / 120-frame gaps) and Table 2 (de-noising) for
 linear interpolation, the Holden-style 1D-conv AE, the Vanilla AE and the CAE, plus bone-length spread, and
 a time-matched table: reconstruction (no gap) and 1 s / 2 s / 4 s gaps (30 / 60 / 120 frames at 30 Hz), each
-gap also as a ratio to linear fill.
+gap also as a ratio to linear fill.  Two non-learned rows (``BASELINES``): linear fill (the paper's) and the
+limited cubic Hermite fill (:func:`inbetween_jax.baselines.hermite_fill`, not in the paper), the pre-fill of
+``model.fill=hermite`` runs, so the tables show how much of a residual model's number is its fill alone.
 
 ``run(source, results_dir, run_dir, quick)``: ``run_dir`` is a CAE run folder, a folder of run folders
 (e.g. ``runs/cae`` holding ``cae/``, ``vanilla/``, ``holden1d/``) or both (a run folder whose sub-folders
@@ -18,12 +20,13 @@ import time
 
 import numpy as np
 
-LABELS = {"linear": "Linear interpolation", "holden1d": "Holden-style 1D conv AE (60)",
+LABELS = {"linear": "Linear interpolation", "hermite": "Hermite fill (limited cubic; baseline, not in paper)", "holden1d": "Holden-style 1D conv AE (60)",
           "vanilla": "Vanilla AE (60)", "cae": "CAE (ours)", "holden1d_residual": "Holden-style 1D AE, residual",
           "vanilla_residual": "Vanilla AE, residual", "cae_residual": "CAE, residual (improved)"}
 PAPER_T1 = {"linear": ("n/a", "10.45 (± 15.5)", "17.04 (± 24.4)"), "holden1d": ("4.44 (± 6.5)", "15.28 (± 19.1)",
             "18.26 (± 24.5)"), "vanilla": ("2.79 (± 6.7)", "7.45 (± 11.7)", "13.61 (± 21.6)"),
-            "cae": ("2.75 (± 5.2)", "5.47 (± 8.6)", "7.00 (± 10.6)")}
+            "cae": ("2.75 (± 5.2)", "5.47 (± 8.6)", "7.00 (± 10.6)"), "hermite": ("-", "-", "-")}
+BASELINES = ("linear", "hermite")   # non-learned rows: their fill functions (baselines.linear_fill / hermite_fill)
 VARIANT_ORDER = ("holden1d", "vanilla", "cae", "holden1d_residual", "vanilla_residual", "cae_residual")
 SECONDS = (1, 2, 4)   # time-matched gaps
 TRAIN_HINT = "inbetween train cae --run-dir runs/cae [--preset cpu model.variant=vanilla|holden1d]"
@@ -62,7 +65,6 @@ def _data_name(src: str) -> str:
 
 def run(source: str | None, results_dir: str, run_dir: str | None, quick: bool = False) -> dict:
     """Evaluate every CAE run of ``run_dir``; returns ``{"markdown", "rows", ...the tables}``."""
-    from inbetween_jax.baselines import linear_fill
     from inbetween_jax.data import load_motions, resolve_source
     from inbetween_jax.evaluation import infilling as proto
     from inbetween_jax.models.cae.infer import fill, load
@@ -85,14 +87,15 @@ def run(source: str | None, results_dir: str, run_dir: str | None, quick: bool =
                              "joints); pass the matching --source")
     x = proto.test_clips(motions, norm, limit=8 if quick else None)
     corrupt = proto.corruptions(x, j)
-    methods = ["linear"] + [v for v in VARIANT_ORDER if v in models]
+    methods = list(BASELINES) + [v for v in VARIANT_ORDER if v in models]
+    predictors = {meth: _baseline(meth) if meth in BASELINES else
+                  (lambda inp, mask, m=models[meth]: fill(m, inp, mask)) for meth in methods}
     tables = {}
     for meth in methods:
-        predict = linear_fill if meth == "linear" else (lambda inp, mask, m=models[meth]: fill(m, inp, mask))
-        tables[meth] = proto.evaluate_method(predict, x, corrupt, norm, j, ref.skeleton.parents,
-                                             learned=meth != "linear")
+        tables[meth] = proto.evaluate_method(predictors[meth], x, corrupt, norm, j, ref.skeleton.parents,
+                                             learned=meth not in BASELINES)
     fps = float(motions[0].fps)
-    timed = {meth: _time_matched(models.get(meth), x, norm, j, fps, tables[meth]["table1"][0]) for meth in methods}
+    timed = {meth: _time_matched(predictors[meth], x, norm, j, fps, tables[meth]["table1"][0]) for meth in methods}
     result = {"source": src, "note": "trained checkpoints", "runs": {v: r.run_dir for v, r in runs.items()},
               "num_clips": int(x.shape[0]), "clip_length": int(x.shape[2]), "fps": fps,
               "test_files": [os.path.basename(m.source) for m in motions],
@@ -113,12 +116,18 @@ def run(source: str | None, results_dir: str, run_dir: str | None, quick: bool =
     return result
 
 
-def _time_matched(model, x, norm, num_joints: int, fps: float, recon) -> dict:
+def _baseline(name: str):
+    """The fill function of a non-learned row: ``predict(x_norm, mask)`` (the input is masked first)."""
+    from inbetween_jax.baselines import hermite_fill, linear_fill
+    f = {"linear": linear_fill, "hermite": hermite_fill}[name]
+    return lambda inp, mask: f(np.asarray(inp, np.float32) * mask, mask)
+
+
+def _time_matched(predict, x, norm, num_joints: int, fps: float, recon) -> dict:
     """``{"recon": (mean, std) or None, "gaps": {seconds: {"frames", "err": (mean, std)}}}``: one centred gap
-    of round(s * fps) frames (skipped when it does not fit the clip); ``model`` None: linear fill."""
-    from inbetween_jax.baselines import linear_fill
+    of round(s * fps) frames (skipped when it does not fit the clip); ``predict(x, mask)``: the method (a
+    trained model's fill, or :func:`_baseline`)."""
     from inbetween_jax.evaluation.infilling import position_error
-    from inbetween_jax.models.cae.infer import fill
     from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
     n, _, t = x.shape
     gaps = {}
@@ -129,7 +138,7 @@ def _time_matched(model, x, norm, num_joints: int, fps: float, recon) -> dict:
         a = (t - g) // 2
         fm = np.broadcast_to(gap_frames(t, [(a, a + g)]), (n, t))
         mask = frame_mask_image(fm, num_joints)
-        pred = linear_fill(x * mask, mask) if model is None else fill(model, x, mask)
+        pred = predict(x, mask)
         gaps[sec] = {"frames": g, "err": position_error(pred, x, norm, num_joints, frames=1.0 - fm)}
     return {"recon": recon, "gaps": gaps}
 
@@ -140,7 +149,7 @@ def _rows(r, methods, data) -> list:
     from inbetween_jax.evaluation.infilling import GAPS, GAPS_SECONDS
     out = []
     for m in methods:
-        model = None if m == "linear" else "cae"
+        model = None if m in BASELINES else "cae"
         gaps = {g: ms for g, ms in zip(GAPS, r["table1"][m])}
         gaps.update({g: ms for g, ms in zip(GAPS_SECONDS, r["table1_seconds"][m])})
         gaps.update({v["frames"]: v["err"] for v in r["time_matched"][m]["gaps"].values()})

@@ -23,10 +23,11 @@ Variants (``cfg.model.variant``):
   (D -> 256) + ReLU + max-pool over time, nearest-neighbour un-pooling and a width-25 conv back to D.
 
 Residual form (``cfg.model.residual``; not the paper): :func:`apply` takes the mask too, pre-fills the missing
-entries by linear interpolation (:func:`~inbetween_jax.models.cae.masks.linear_prefill`), feeds the network
+entries by linear interpolation (:func:`~inbetween_jax.models.cae.masks.linear_prefill`; ``cfg.model.fill =
+"hermite"``: the limited cubic Hermite fill :func:`inbetween_jax.baselines.hermite_fill`), feeds the network
 the pre-filled image and the mask as two input channels (``holden1d``: 2D feature channels) and returns the
 pre-filled image plus the network's output.  The last conv is zero-initialised, so an untrained model
-returns the linear fill.  ``cfg.model.paste_known`` then replaces the known entries by the input's.
+returns the pre-fill.  ``cfg.model.paste_known`` then replaces the known entries by the input's.
 ``cfg.model.skips`` (CAE only; not the paper) adds U-Net skip connections: each decoder unit concatenates the
 matching encoder unit's activation before its pool to its first conv's output, so frame-level detail need not
 pass the 3 x 8 bottleneck.
@@ -49,12 +50,14 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from inbetween_jax.baselines.hermite_fill import hermite_fill
 from inbetween_jax.models.cae.masks import linear_prefill
 
-__all__ = ["conv_same", "max_pool_ceil", "upsample_zeros", "level_sizes", "VARIANTS", "param_shapes",
-           "init_params", "apply", "encode", "decode", "conv", "num_params"]
+__all__ = ["conv_same", "max_pool_ceil", "upsample_zeros", "level_sizes", "VARIANTS", "FILLS", "param_shapes",
+           "init_params", "prefill", "apply", "encode", "decode", "conv", "num_params"]
 
 VARIANTS = ("cae", "vanilla", "holden1d")
+FILLS = ("linear", "hermite")
 _DN = ("NHWC", "HWIO", "NHWC")
 
 
@@ -147,6 +150,8 @@ def param_shapes(cfg, num_features: int) -> dict:
     """
     m = cfg.model
     _check_variant(m.variant)
+    if m.fill not in FILLS:
+        raise ValueError(f"unknown model.fill {m.fill!r}; choose one of {FILLS}")
     cin = 2 if m.residual else 1
     if m.variant == "holden1d":
         return {"dec": _layer(m.holden_hidden, num_features, (1, m.holden_width)),
@@ -249,6 +254,17 @@ def _network(params: dict, x, cfg):
     return decode(params, z, sizes, cfg, skips if cfg.model.skips else None)
 
 
+def prefill(x, mask, fill: str = "linear"):
+    """The residual form's pre-filled image (``model.fill``): ``"linear"``
+    (:func:`~inbetween_jax.models.cae.masks.linear_prefill`) or ``"hermite"`` (limited cubic Hermite,
+    :func:`inbetween_jax.baselines.hermite_fill`).  x: (..., D, T); mask broadcastable, 1 = known."""
+    if fill == "linear":
+        return linear_prefill(x, mask)
+    if fill == "hermite":
+        return hermite_fill(jnp.asarray(x, jnp.float32), jnp.asarray(mask))
+    raise ValueError(f"unknown model.fill {fill!r}; choose one of {FILLS}")
+
+
 def apply(params: dict, x, cfg, mask=None):
     """The network of ``cfg.model.variant``: x (B, D, T) -> (B, D, T) for any T >= 1.
 
@@ -261,7 +277,7 @@ def apply(params: dict, x, cfg, mask=None):
         mask = jnp.ones_like(x)
     if m.residual:
         mask = jnp.broadcast_to(mask, x.shape).astype(x.dtype)
-        base = linear_prefill(x, mask)
+        base = prefill(x, mask, m.fill)
         out = base + _network(params, jnp.stack([base, mask], axis=-1), cfg)
     else:
         out = _network(params, x, cfg)
