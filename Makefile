@@ -5,6 +5,7 @@ PY     := $(VENV)/bin/python
 MODEL  ?= scvae
 ARGS   ?=
 RESULTS ?= results
+PAIRS  ?= ../shared/data/cmu_pairs
 
 .PHONY: help install test test-all bench bench-quick train lint-dupes clean-cache embedded-data demo infill preview
 
@@ -14,7 +15,8 @@ help:
 	@echo "make test-all             include tests marked slow"
 	@echo "make train MODEL=scvae    inbetween train MODEL ARGS (ARGS='--preset tiny train.num_steps=20 ...')"
 	@echo "make bench                inbetween bench: baseline + model tables into $(RESULTS)/, then the speed section"
-	@echo "                          (NO_SPEED=1 skips it)"
+	@echo "                          (NO_SPEED=1 skips it); the interaction model also on the real pairs in"
+	@echo "                          \$$(PAIRS) (default ../shared/data/cmu_pairs) -> $(RESULTS)/pairs/"
 	@echo ".venv/bin/inbetween --help  train / bench / infill / preview / demo"
 	@echo "make demo                 inbetween demo: tiny runs of every model + infill with previews -> results/demo/"
 	@echo "make infill ARGS='...'    .venv/bin/inbetween infill ARGS (see .venv/bin/inbetween infill --help)"
@@ -41,6 +43,8 @@ train: install
 
 bench: install
 	$(VENV)/bin/inbetween bench --results $(RESULTS) $(ARGS)
+	@if [ -d "$(PAIRS)" ]; then $(VENV)/bin/inbetween bench --source $(PAIRS) --models interaction --quick \
+	    --results $(RESULTS)/pairs; else echo "no two-person capture in $(PAIRS): skipping the real-pair bench"; fi
 ifeq ($(NO_SPEED),)
 	$(PY) experiments/bench_speed.py --results $(RESULTS)
 endif

@@ -181,6 +181,30 @@ def test_bench_uses_shipped_weights_only_where_they_fit(shipped, monkeypatch):
     assert shipped_section("interaction", "runs/interaction", "embedded", "cmu-embedded", skel, args) is None
 
 
+def test_bench_evaluates_shipped_interaction_weights_on_real_pairs(monkeypatch, tmp_path):
+    """The pairs folder's single-person windows are on the raw 43-joint rig, the shipped interaction weights on the
+    21 joints the pair loader keeps: the bench must hand the folder to the interaction bench, not skip it."""
+    from types import SimpleNamespace
+
+    from conftest import SHARED_DATA
+
+    from inbetween_jax.cli import bench_cmd
+    from inbetween_jax.data.user_input import read_motion
+    from inbetween_jax.models import REGISTRY
+    pairs = os.path.join(SHARED_DATA, "cmu_pairs")
+    if not os.path.isdir(pairs):
+        pytest.skip("shared CMU salsa data (cmu_pairs) not available")
+    monkeypatch.delenv("INBETWEEN_WEIGHTS_DIR", raising=False)
+    calls = []
+    spec = SimpleNamespace(benchmark=lambda *a: calls.append(a) or {"markdown": "table", "rows": [{"value": 1.0}]})
+    monkeypatch.setitem(REGISTRY, "interaction", spec)
+    raw = read_motion(os.path.join(pairs, "60_01_scaled.bvh")).skeleton
+    out = bench_cmd.shipped_section("interaction", str(tmp_path / "none"), pairs, "bvh-folder", raw,
+                                    SimpleNamespace(results=str(tmp_path), quick=True))
+    assert raw.num_joints == 43 and calls and calls[0][0] == pairs
+    assert out["rows"][0]["weights"] == "shipped" and "shipped weights" in out["markdown"]
+
+
 @pytest.mark.slow
 def test_bench_section_from_shipped_cae(shipped, tmp_path, monkeypatch):
     from types import SimpleNamespace

@@ -90,7 +90,8 @@ def shipped_section(model: str, run_dir: str, source: str, data: str, skeleton, 
         return {"markdown": f"{skip}; the shipped {model} weights were trained on CMU mocap ({trained_on}) and do not "
                             f"apply to LaFAN1 (train one with `inbetween train {model}`).", "rows": []}
     skel = Skeleton.from_dict(run_.skeleton) if run_.skeleton else None
-    if skel is None or not skel.same_topology(skeleton):
+    pairs = model == "interaction" and has_real_pairs(source)   # its bench reads the pairs (unused joints dropped)
+    if not pairs and (skel is None or not skel.same_topology(skeleton)):
         return {"markdown": f"{skip}; the shipped {model} weights ({skel.num_joints if skel else '?'} joints) do not fit "
                             f"this source's {skeleton.num_joints}-joint skeleton.", "rows": []}
     say(f"{model}: no run in {run_dir}, evaluating the shipped weights ({folder}, step {run_.step})")

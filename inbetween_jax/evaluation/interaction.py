@@ -168,7 +168,8 @@ def table1_windows(test_pairs, pos_scale: float, max_windows: int, lengths=LENGT
 
 def l2p_stats(train_pairs, pos_scale: float, key_range=(50, 70), num: int = 256, seed: int = 0) -> tuple:
     """L2P normalisation ``(mean, std)`` (J*3,) of positions in the common (character A key) space, from
-    ``num`` unmirrored 50-frame training samples."""
+    ``num`` unmirrored 50-frame training samples with keyframes ``key_range`` frames after the window start.
+    The bench keeps the default range for every run, so runs trained with other key ranges share one scale."""
     sb = sample_batch(train_pairs, np.random.default_rng(seed), num, 50, key_range, False, pos_scale)
     common = np.asarray(to_common_space(sb["x"], sb["rel_R"], sb["rel_t"]))[..., :3]   # (N, 2, T, J, 3)
     flat = common.reshape(-1, common.shape[-2] * 3)

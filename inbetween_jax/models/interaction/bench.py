@@ -135,7 +135,7 @@ def run(source, results_dir: str, run_dir, quick: bool = False) -> dict:
     train, test = split_pairs(pairs, "train", d.split), split_pairs(pairs, "test", d.split)
     constructed = any(p.constructed for p in pairs)
     windows = proto.table1_windows(test, d.pos_scale, 24 if quick else 128)
-    stats = proto.l2p_stats(train, d.pos_scale, (d.key_min, d.key_max))
+    stats = proto.l2p_stats(train, d.pos_scale)   # the protocol's fixed key range: one scale for every run
     J = pairs[0].feats.shape[2]
     cls = proto.train_classifier(train, J, cfg.model.pjd_joints, steps=40 if quick else 400, pos_scale=d.pos_scale)
     feet = tuple(pairs[0].skeleton.foot_joints())
