@@ -70,8 +70,9 @@ def test_make_training_pieces_and_meta():
 
 def test_improved_switches_in_training():
     """The improved switches on real clips: evaluation-matched gaps switch on at the curriculum's end, the
-    untrained residual model's loss is the linear fill's, and gap_weight changes the loss of the same batch."""
-    from inbetween_jax.baselines import linear_fill
+    untrained residual model's loss is its pre-fill's (``model.fill=hermite``: the limited Hermite fill), and
+    gap_weight changes the loss of the same batch."""
+    from inbetween_jax.baselines import hermite_fill
     from inbetween_jax.models.cae.losses import weighted_l1
     from inbetween_jax.models.cae.masks import training_mask
     cfg = apply_overrides(get_config("improved"), ["model.channels=4,4,8,8,8", "data.max_motions=2",
@@ -85,16 +86,17 @@ def test_improved_switches_in_training():
     b = tr.batch_fn(200, jax.random.key(1))
     state = tr.init_fn(jax.random.key(0))
     _, metrics = jax.jit(tr.step_fn)(state, b, jax.random.key(2))
-    # the same mask as the step draws: the untrained model's loss is linear fill's weighted L1
+    # the same mask as the step draws: the untrained model's loss is the Hermite fill's weighted L1
     x = np.asarray(b["x"])
     assert x.shape == (4, 66, 64)
     mask = np.asarray(training_mask(jax.random.key(2), 4, 21, 64, b["mu"], cfg.data.mask.sigma, cfg.data.mask.p_joint,
                                     cfg.data.mask.max_joints, b["matched"], (30, 60, 120), 0.25))
-    want = float(weighted_l1(linear_fill(x * mask, mask), x, mask, cfg.loss.gap_weight))
+    assert cfg.model.fill == "hermite"
+    want = float(weighted_l1(hermite_fill(x * mask, mask), x, mask, cfg.loss.gap_weight))
     assert float(metrics["loss"]) == pytest.approx(want, rel=1e-5)
     plain = make_training(apply_overrides(cfg, ["loss.gap_weight=1"]), load_data(cfg, "embedded"))
     _, m1 = jax.jit(plain.step_fn)(state, b, jax.random.key(2))
-    want1 = float(weighted_l1(linear_fill(x * mask, mask), x, mask, 1.0))
+    want1 = float(weighted_l1(hermite_fill(x * mask, mask), x, mask, 1.0))
     assert float(m1["loss"]) == pytest.approx(want1, rel=1e-5) and abs(want1 - want) > 0.05 * want
     assert float(m1["hole_l1"]) == pytest.approx(float(metrics["hole_l1"]), rel=1e-6)
 
