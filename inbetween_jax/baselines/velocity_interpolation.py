@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from inbetween_jax.baselines.interpolation import interpolate_transition
-from inbetween_jax.geometry import quat_conj, quat_mul
+from inbetween_jax.geometry import quat_conj, quat_from_axis_angle, quat_mul, quat_to_axis_angle
 
 __all__ = ["hermite_weights", "rotation_vector", "rotation_from_vector", "velocity_offsets",
            "velocity_interpolate_transition"]
@@ -30,16 +30,16 @@ def hermite_weights(length, max_length: int):
 
 
 def rotation_vector(q):
-    """(..., 4) unit quaternion -> (..., 3) axis * angle (angle in [0, pi], sign-safe, finite at identity)."""
-    q = q * jnp.where(q[..., :1] < 0, -1.0, 1.0)
-    s = jnp.sqrt(jnp.sum(q[..., 1:] ** 2, -1, keepdims=True) + 1e-24)
-    return 2.0 * jnp.arctan2(s, q[..., :1]) * q[..., 1:] / s
+    """(..., 4) unit quaternion -> (..., 3) axis * angle (:func:`~inbetween_jax.geometry.quat_to_axis_angle`)."""
+    axis, angle = quat_to_axis_angle(q)
+    return axis * angle[..., None]
 
 
 def rotation_from_vector(v):
-    """(..., 3) axis * angle -> (..., 4) unit quaternion (inverse of :func:`rotation_vector`)."""
-    a = jnp.sqrt(jnp.sum(v ** 2, -1, keepdims=True) + 1e-24)
-    return jnp.concatenate([jnp.cos(0.5 * a), jnp.sin(0.5 * a) * v / a], -1)
+    """(..., 3) axis * angle -> (..., 4) unit quaternion (:func:`~inbetween_jax.geometry.quat_from_axis_angle`;
+    a zero vector gives the identity)."""
+    angle = jnp.sqrt(jnp.sum(v ** 2, -1))
+    return quat_from_axis_angle(v / jnp.maximum(angle, 1e-12)[..., None], angle)
 
 
 def velocity_offsets(q_prev, q0, q1, r_prev, r0, r1, length, max_length: int):

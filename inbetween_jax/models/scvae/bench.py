@@ -81,7 +81,7 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
             r["method"] = variant
     md = markdown_table(rows, cols, f"S-CVAE, Table 1 layout ({len(bench)} windows, {NUM_SAMPLES} samples)")
     official = official_rows(trained, bench, x_mean, x_std, variant)
-    vel = "with" if (trained.cfg.model.start_velocity or trained.cfg.model.base_velocity) else "without"
+    vel = "with" if trained.cfg.model.uses_past_frame else "without"
     md += "\n\n" + markdown_table(official, ("L2Q", "L2P", "NPSS"),
                                   f"S-CVAE, official LaFAN1 protocol (10 past frames; the model uses them {vel} the "
                                   f"past frame's root velocity; metrics averaged over {NUM_SAMPLES} samples)")

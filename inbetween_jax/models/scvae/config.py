@@ -81,6 +81,11 @@ class ModelConfig:
     base_velocity: bool = False    # residual base continues the start's velocity (Hermite, needs the past frame)
     search: int = 1                # test-time latent pair search: candidates per sample (paper: "N pairs")
 
+    @property
+    def uses_past_frame(self) -> bool:
+        """Training and the past-frame protocols give the start keyframe the frame before it."""
+        return self.start_velocity or self.base_velocity
+
 
 @dataclasses.dataclass(frozen=True)
 class DataConfig:

@@ -110,7 +110,7 @@ def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_sampl
         sl = slice(lo, lo + chunk)
         start = {"q": windows.local_quats[sl, k0], "r": windows.root_pos[sl, k0], "c": windows.contacts[sl, k0]}
         target = {"q": windows.local_quats[sl, k1], "r": windows.root_pos[sl, k1], "c": windows.contacts[sl, k1]}
-        if velocity and (cfg.start_velocity or cfg.base_velocity) and n_past >= 2:
+        if velocity and cfg.uses_past_frame and n_past >= 2:
             start["v"] = windows.root_pos[sl, k0] - windows.root_pos[sl, k0 - 1]
             start["qp"] = windows.local_quats[sl, k0 - 1]
         start = jax.tree.map(jnp.asarray, start)

@@ -39,7 +39,7 @@ def load_data(cfg, source: str, split: str = "train") -> TrainData:
     from inbetween_jax.data import load_dataset
     from inbetween_jax.data.datasets import is_lafan1, split_files, window_settings
     windows = load_dataset(source, split, window=cfg.data.window or None)
-    if cfg.data.trans_max + 2 + int(cfg.model.start_velocity or cfg.model.base_velocity) > windows.window:
+    if cfg.data.trans_max + 2 + int(cfg.model.uses_past_frame) > windows.window:
         raise ValueError(f"{source}: {windows.window}-frame {split} windows are too short for "
                          f"data.trans_max={cfg.data.trans_max} (at most {windows.window - 2})")
     ws = window_settings(source, split)
@@ -117,7 +117,7 @@ def batch_fn_factory(data: TrainData, cfg):
                          f"(these have {window})")
     batch_size = cfg.train.batch_size
 
-    vel = bool(cfg.model.start_velocity or cfg.model.base_velocity)
+    vel = cfg.model.uses_past_frame
 
     def batch_fn(step, key):
         seed = np.asarray(jax.random.key_data(key)).astype(np.uint64)
