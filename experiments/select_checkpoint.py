@@ -29,7 +29,8 @@ def main(argv=None) -> int:
         print(f"select_checkpoint: {run.model} has no validation score", file=sys.stderr)
         return 2
     source = args.source or run.data.get("source")
-    out = select_checkpoint(args.run_dir, source, lambda r: bench.val_score(r, source), "val L2P")
+    out = select_checkpoint(args.run_dir, source, lambda r: bench.val_score(r, source),
+                            getattr(bench, "VAL_METRIC", "val L2P"))
     return 0 if out else 1
 
 

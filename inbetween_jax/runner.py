@@ -70,7 +70,12 @@ def train_model(model: str, preset: str | None = None, overrides: Sequence[str] 
     bench = spec.module("bench")
     if tc.split == "fit" and hasattr(bench, "val_score"):
         from inbetween_jax.train.select import select_checkpoint
-        select_checkpoint(run_dir, src, lambda r: bench.val_score(r, src), "val L2P", log=log)
+        try:
+            select_checkpoint(run_dir, src, lambda r: bench.val_score(r, src), getattr(bench, "VAL_METRIC", "val L2P"),
+                              log=log)
+        except ValueError as e:     # e.g. validation motion too short for the score's windows
+            if log:
+                log(f"checkpoint selection skipped: {e}")
     if log and logged:
         last = {k: round(v, 5) if isinstance(v, float) else v for k, v in logged[-1].items()}
         log(f"done in {wall:.0f} s; last logged: {last}")

@@ -23,10 +23,12 @@ import numpy as np
 
 from inbetween_jax.train.run import RUN_FILE, WEIGHTS_FILE, Run, RunError, flat_leaves, load_run
 
-__all__ = ["ENV", "KEEP", "EXACT", "weights_root", "shipped_dir", "shipped_run", "inference_state", "export_run",
-           "folder_bytes"]
+__all__ = ["ENV", "INFERENCE_SWITCHES", "KEEP", "EXACT", "weights_root", "shipped_dir", "shipped_run",
+           "inference_state", "export_run", "folder_bytes"]
 
 ENV = "INBETWEEN_WEIGHTS_DIR"
+# Switches that only change inference (the trained parameters are the same either way): ``export_run(inference=)``.
+INFERENCE_SWITCHES = {"interaction": ("model.refiner", "model.latent_scale"), "scvae": ("model.search",)}
 # Per model: the key-path prefixes of the train state that ``infer.load`` / inference use.
 KEEP = {"scvae": ("params", "stats"),                # generators + normalisation (disc, opt_g, opt_d dropped)
         "cae": ("params",),                          # opt_state dropped
@@ -102,11 +104,13 @@ def _restore_full(run: Run) -> dict:
 
 
 def export_run(run_dir: str, step: int | None = None, out_dir: str | None = None, dtype: str = "float16",
-               why: str | None = None, root: str | None = None) -> dict:
+               why: str | None = None, root: str | None = None, inference: tuple = ()) -> dict:
     """Write the shipped run of ``run_dir``'s checkpoint ``step`` (default: the latest) to ``out_dir``
     (default ``<weights_root(root)>/<model>``): ``run.json`` + ``params.npz``.
 
     why: how the step was chosen (recorded; default "latest checkpoint" / "chosen step").
+    inference: ``key=value`` overrides of inference-only switches (:data:`INFERENCE_SWITCHES`, e.g.
+    ``model.refiner=false``) written into the shipped ``run.json``'s config and recorded under ``shipped``.
     Returns ``{"out_dir", "model", "step", "dtype", "bytes", "arrays", "parameters", "checkpoint_bytes"}``.
 
     Raises:
@@ -119,17 +123,23 @@ def export_run(run_dir: str, step: int | None = None, out_dir: str | None = None
         raise RunError(f"{run_dir}: already a shipped run (export from the training run folder)")
     if run.model not in KEEP:
         raise RunError(f"{run_dir}: no inference key list for model {run.model!r} (known: {', '.join(KEEP)})")
+    bad = [o for o in inference if o.split("=", 1)[0] not in INFERENCE_SWITCHES.get(run.model, ())]
+    if bad:
+        raise RunError(f"--set {bad[0]}: not an inference switch of {run.model} "
+                       f"(choose {', '.join(INFERENCE_SWITCHES.get(run.model, ())) or 'none'})")
     arrays = inference_state(_restore_full(run), run.model, dtype)
     out_dir = out_dir or os.path.join(weights_root(root), run.model)
     os.makedirs(out_dir, exist_ok=True)
     with open(os.path.join(run_dir, RUN_FILE)) as f:
         meta = json.load(f)
+    if inference:
+        meta["config"] = _with_overrides(run.model, meta["config"], inference)
     trained = max([int(h.get("steps", 0)) for h in meta.get("history", [])] + [int(run.step)])
     meta["shipped"] = {
         "step": int(run.step), "dtype": dtype, "keep": list(KEEP[run.model]),
         "why": why or ("latest checkpoint" if step is None else f"chosen step {step}"),
         "from_run": os.path.basename(os.path.normpath(run_dir)),
-        "data_source": run.data.get("source"), "steps_trained": trained,
+        "data_source": run.data.get("source"), "steps_trained": trained, "inference": list(inference),
         "parameters": int(sum(a.size for a in arrays.values())),
         "exported": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
     tmp = os.path.join(out_dir, WEIGHTS_FILE + ".tmp.npz")
@@ -141,3 +151,15 @@ def export_run(run_dir: str, step: int | None = None, out_dir: str | None = None
     return {"out_dir": out_dir, "model": run.model, "step": int(run.step), "dtype": dtype,
             "bytes": folder_bytes(out_dir), "arrays": len(arrays), "parameters": meta["shipped"]["parameters"],
             "checkpoint_bytes": folder_bytes(os.path.join(run.checkpoint_dir, str(run.step)))}
+
+
+def _with_overrides(model: str, config: dict, overrides) -> dict:
+    """A run's config dict with ``key=value`` overrides applied (and checked) through the model's Config."""
+    from inbetween_jax.models import get_spec
+    from inbetween_jax.train.config import ConfigError, apply_overrides, config_from_dict, config_to_dict
+    spec = get_spec(model)
+    try:
+        cfg = config_from_dict(type(spec.get_config(spec.default_preset)), config)
+        return config_to_dict(apply_overrides(cfg, list(overrides)))
+    except (ConfigError, TypeError, ValueError) as e:
+        raise RunError(f"--set {' '.join(overrides)}: {e}") from None

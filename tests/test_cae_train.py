@@ -169,6 +169,31 @@ def test_bench_skips_without_runs(tmp_path):
     assert not (tmp_path / "results").exists()
 
 
+def test_validation_selection(tmp_path):
+    """A ``train.split=fit`` run chooses its checkpoint on the held-out files (``selection.json``); an untrained
+    residual model (zero last layer) scores exactly its Hermite fill's ratio to linear fill there."""
+    from inbetween_jax.data import load_motions
+    from inbetween_jax.evaluation.infilling import test_clips
+    from inbetween_jax.models.cae import bench
+    switches = ["model.residual=true", "model.paste_known=true", "model.fill=hermite"]
+    run_dir, _ = _train(tmp_path / "run", switches + ["train.num_steps=2", "train.ckpt_every=1", "train.split=fit",
+                                                      "train.keep_checkpoints=0"])
+    with open(os.path.join(run_dir, "selection.json")) as f:
+        chosen = json.load(f)
+    assert set(chosen["scores"]) == {"1", "2"} and chosen["split"] == "val"
+    assert chosen["scores"][str(chosen["step"])] == min(chosen["scores"].values())
+    _train(tmp_path / "untrained", switches + ["train.num_steps=0"])
+    untrained = load_run(str(tmp_path / "untrained"), 0)
+    norm = infer.load(untrained).normalizer
+    x = test_clips(load_motions("embedded", "val"), norm, bench.VAL_CLIP, bench.VAL_CLIP // 2)
+    j = untrained.extra["num_joints"]
+    want = [bench._time_matched(bench._baseline(f), x, norm, j, 30.0, None)["gaps"] for f in ("hermite", "linear")]
+    assert set(want[0]) == {1, 2}                                   # a 4 s gap does not fit a 96-frame clip
+    ratio = np.mean([want[0][s]["err"][0] / want[1][s]["err"][0] for s in (1, 2)])
+    assert bench.val_score(untrained, "embedded") == pytest.approx(ratio, rel=1e-4)
+    assert abs(ratio - 1.0) > 1e-3
+
+
 @pytest.mark.slow
 def test_bench_quick_runs(tmp_path):
     """The bench finds one run per variant under a folder of run folders and fills both tables."""

@@ -45,7 +45,8 @@ def test_presets_switches_off_in_paper_and_cpu_on_in_improved():
     assert imp.data.key_inside > 0 and imp.model.key_offsets and imp.model.residual and imp.model.tta
     assert imp.data.ss_max == 1.0 and imp.data.ar_steps > cpu.data.ar_steps and imp.loss.adv_start > 0
     assert imp.model.pjd_frames == imp.data.ar_steps * imp.data.n_pred and imp.loss.w_pos > 1
-    assert imp.train == cpu.train
+    assert dataclasses.replace(imp.train, split="train", keep_checkpoints=cpu.train.keep_checkpoints) == cpu.train
+    assert imp.train.split == "fit" and not imp.model.refiner and cpu.model.refiner     # chosen on validation
     same = ("dct_coeffs", "conv_channels", "hidden", "gcn_layers", "latent", "refiner_hidden", "pae_hidden")
     assert all(getattr(imp.model, k) == getattr(cpu.model, k) for k in same)
 
@@ -144,6 +145,19 @@ def test_tta_input_changes_the_prediction_and_is_required(windows, train_pairs):
     assert np.abs(np.asarray(a - b)).max() > 1e-6
     with pytest.raises(ValueError, match="tta"):
         ia.generator_step(params["gen"], *args)
+
+
+def test_latent_scale_zero_is_deterministic(windows, train_pairs):
+    """``model.latent_scale``: 1 samples z around the encoder's mean (different keys, different rollouts); 0 uses
+    the mean (every key gives the same rollout)."""
+    fa = jnp.asarray(train_pairs[0].forward_axis, jnp.float32)
+    params, w, _ = _inputs(windows, TINY, 30)
+    params["gen"]["film"] = jax.tree.map(lambda a: a + 0.3, params["gen"]["film"])  # z must reach the output
+    out = {s: ia.sample_rollouts(params, w, windows["keypose"], windows["rel_R"], windows["rel_t"],
+                                 jax.random.key(2), TINY, fa, 2, 3, threshold=-1.0, latent_scale=s)[0]
+           for s in (0.0, 1.0)}
+    assert np.abs(np.asarray(out[1.0][0] - out[1.0][1])).max() > 1e-5
+    np.testing.assert_allclose(np.asarray(out[0.0][0]), np.asarray(out[0.0][2]), atol=1e-6)
 
 
 def test_adversarial_weight_warms_up_late(train_pairs):

@@ -59,6 +59,30 @@ def test_all_real_pairs_split_per_take():
     assert not {p.name for p in test} & {p.name for p in idata.split_pairs(real_pairs, "train")}
 
 
+def test_validation_split_holds_out_the_last_training_take():
+    """Whole takes: ``val`` is the last training take by name, ``fit`` the other training takes; the test takes
+    stay out of both (checkpoint selection never sees them)."""
+    from types import SimpleNamespace
+    takes = [SimpleNamespace(name=f"60+61_{n:02d}", split="test" if n >= 12 else "train", constructed=False)
+             for n in (1, 2, 3, 4, 5, 6, 7, 9, 10, 11, 12, 13)]
+    names = {s: [p.name for p in idata.split_pairs(takes, s)] for s in ("train", "fit", "val", "test")}
+    assert names["val"] == ["60+61_11"] and names["test"] == ["60+61_12", "60+61_13"]
+    assert names["fit"] == names["train"][:-1] and "60+61_11" in names["train"]
+    with pytest.raises(ValueError, match="unknown pair split"):
+        idata.split_pairs(takes, "dev")
+
+
+def test_constructed_validation_pair_shares_no_clip_with_fit():
+    """Embedded constructed pairs chain neighbouring clips (a+b, b+c): the held-out pair's clips appear in no
+    ``fit`` pair, and it is not a test pair."""
+    pairs = idata.load_pairs("embedded")
+    fit, val, test = (idata.split_pairs(pairs, s) for s in ("fit", "val", "test"))
+    assert len(val) == 1 and val[0].name not in {p.name for p in test}
+    clips = set(val[0].name.split("+"))
+    assert not any(clips & set(p.name.split("+")) for p in fit)
+    assert len(fit) >= len(idata.split_pairs(pairs, "train")) - 2
+
+
 @needs_pairs
 def test_fk_matches_bvhio_with_mixed_euler_orders():
     bvhio = pytest.importorskip("bvhio")

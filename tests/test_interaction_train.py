@@ -3,6 +3,7 @@ shipped CMU clips); the training entry point writes a run folder that ``infer.lo
 from __future__ import annotations
 
 import argparse
+import json
 import os
 
 import jax
@@ -40,9 +41,13 @@ def test_make_training_and_infer_round_trip_through_a_run_folder(tmp_path):
     """The training entry point (2 tiny steps, checkpoint every step) -> run folder -> infer.load restores the
     last step -> one infill of real BVH inputs: finite, right shape."""
     run_dir = str(tmp_path / "run")
-    train_model("interaction", "tiny", ["train.num_steps=2", "train.ckpt_every=1"], source="embedded",
+    train_model("interaction", "tiny", ["train.num_steps=2", "train.ckpt_every=1", "train.split=fit",
+                                        "train.keep_checkpoints=0"], source="embedded",
                 run_dir=run_dir, progress=False, log=None)
-    run = load_run(run_dir)
+    with open(os.path.join(run_dir, "selection.json")) as f:          # chosen on the held-out pair
+        chosen = json.load(f)
+    assert set(chosen["scores"]) == {"1", "2"} and all(np.isfinite(v) for v in chosen["scores"].values())
+    run = load_run(run_dir, 2)
     trained = infer.load(run)
     assert trained.step == 2 and trained.cfg.model.hidden == get_config("tiny").model.hidden
     assert all(p["constructed"] for p in run.data["pairs"])

@@ -98,6 +98,22 @@ def test_export_keeps_only_inference_parameters(shipped):
     assert os.path.getsize(os.path.join(shipped["root"], "cae", "params.npz")) * 4 < cae["checkpoint_bytes"]
 
 
+def test_export_sets_only_inference_switches(shipped, tmp_path):
+    """``--set``: an inference-only switch lands in the shipped config (and is recorded); anything that would
+    change what the parameters mean is refused with one line, before anything is written."""
+    from inbetween_jax.shipped import export_run, shipped_run
+    from inbetween_jax.train.run import RunError
+    root = str(tmp_path / "w")
+    export_run(shipped["runs"]["scvae"], root=root, inference=("model.search=3",))
+    meta = json.load(open(os.path.join(root, "scvae", "run.json")))
+    assert meta["config"]["model"]["search"] == 3 and meta["shipped"]["inference"] == ["model.search=3"]
+    assert shipped_run("scvae", root).config["model"]["search"] == 3
+    for bad in ("model.residual=false", "model.search=many"):
+        with pytest.raises(RunError, match="--set model"):
+            export_run(shipped["runs"]["scvae"], root=str(tmp_path / "bad"), inference=(bad,))
+    assert not os.path.exists(tmp_path / "bad" / "scvae" / "params.npz")
+
+
 def test_shipped_weights_in_the_package_stay_small():
     total = sum(os.path.getsize(os.path.join(d, f)) for d, _, files in os.walk(PACKAGE_WEIGHTS) for f in files)
     assert total <= MAX_SHIPPED_MB * 1024 * 1024, f"{total / 2 ** 20:.1f} MB shipped in {PACKAGE_WEIGHTS}"

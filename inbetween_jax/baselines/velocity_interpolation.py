@@ -6,7 +6,10 @@ For protocols with more than one past frame (the official LaFAN1 benchmark gives
     offset(t) = v0 * t * (1 - t / L)^2,   v0 = (last past frame's velocity) - (the interpolation's velocity),
 
 the cubic Hermite curve whose start tangent is the motion's and whose end tangent is the interpolation's: the
-path leaves the keyframe with the motion's velocity and reaches the target exactly.  Root: the displacement per
+path leaves the keyframe with the motion's velocity and reaches the target exactly.  ``damping`` (per frame,
+default 0) multiplies the offset by ``exp(-damping * t)``: the same start velocity, but the continued motion
+fades within about ``1 / damping`` frames instead of carrying across long gaps (where the cubic overshoots).
+Root: the displacement per
 frame; joints: the rotation vector of ``q_prev^-1 q`` in the joint's own frame, applied as ``q_interp *
 exp(offset)``.  No parameters, nothing learned.
 """
@@ -22,11 +25,12 @@ __all__ = ["hermite_weights", "rotation_vector", "rotation_from_vector", "veloci
            "velocity_interpolate_transition"]
 
 
-def hermite_weights(length, max_length: int):
-    """(T1,) ``t * (1 - t / L)^2`` at t = 0..max_length, zero from ``t = L`` on (``length`` = L)."""
+def hermite_weights(length, max_length: int, damping: float = 0.0):
+    """(T1,) ``t * (1 - t / L)^2 * exp(-damping * t)`` at t = 0..max_length, zero from ``t = L`` on
+    (``length`` = L)."""
     t = jnp.arange(max_length + 1, dtype=jnp.float32)
     s = jnp.clip(t / jnp.maximum(length, 1).astype(jnp.float32), 0.0, 1.0)
-    return t * (1.0 - s) ** 2
+    return t * (1.0 - s) ** 2 * jnp.exp(-damping * t)
 
 
 def rotation_vector(q):
@@ -42,14 +46,14 @@ def rotation_from_vector(v):
     return quat_from_axis_angle(v / jnp.maximum(angle, 1e-12)[..., None], angle)
 
 
-def velocity_offsets(q_prev, q0, q1, r_prev, r0, r1, length, max_length: int):
+def velocity_offsets(q_prev, q0, q1, r_prev, r0, r1, length, max_length: int, damping: float = 0.0):
     """Apply-ready Hermite offsets at t = 0..max_length.
 
     q_prev / q0 / q1: (B, J, 4) local quaternions of the frame before the start keyframe, the start and the
     target keyframe (q1 sign-aligned to q0); r_*: (B, 3) root positions.  Returns (dq (B, T1, J, 4) to
-    right-multiply onto the Slerp path, dr (B, T1, 3) to add to the lerp)."""
+    right-multiply onto the Slerp path, dr (B, T1, 3) to add to the lerp); damping: module docstring."""
     n = jnp.maximum(length, 1).astype(jnp.float32)
-    f = hermite_weights(length, max_length)
+    f = hermite_weights(length, max_length, damping)
     w_motion = rotation_vector(quat_mul(quat_conj(q_prev), q0))
     w_interp = rotation_vector(quat_mul(quat_conj(q0), q1)) / n
     dq = rotation_from_vector((w_motion - w_interp)[:, None] * f[None, :, None, None])
@@ -57,9 +61,10 @@ def velocity_offsets(q_prev, q0, q1, r_prev, r0, r1, length, max_length: int):
     return dq, dr
 
 
-def velocity_interpolate_transition(local_quats, root_pos, n_past: int, n_trans: int):
+def velocity_interpolate_transition(local_quats, root_pos, n_past: int, n_trans: int, damping: float = 0.0):
     """The transition frames ``n_past .. n_past + n_trans - 1`` between keyframes ``n_past - 1`` and
-    ``n_past + n_trans``, continuing the motion of frame ``n_past - 2`` (needs ``n_past >= 2``).
+    ``n_past + n_trans``, continuing the motion of frame ``n_past - 2`` (needs ``n_past >= 2``); damping:
+    module docstring.
 
     local_quats: (B, T, J, 4); root_pos: (B, T, 3).  Returns (quats (B, n_trans, J, 4), root (B, n_trans, 3)),
     float64 numpy."""
@@ -71,7 +76,8 @@ def velocity_interpolate_transition(local_quats, root_pos, n_past: int, n_trans:
     k0, k1, length = n_past - 1, n_past + n_trans, n_trans + 1
     q1 = q[:, k1] * np.where(np.sum(q[:, k1] * q[:, k0], -1, keepdims=True) < 0, -1.0, 1.0)
     dq, dr = velocity_offsets(*(jnp.asarray(x, jnp.float32) for x in (q[:, k0 - 1], q[:, k0], q1, r[:, k0 - 1],
-                                                                      r[:, k0], r[:, k1])), length, length)
+                                                                      r[:, k0], r[:, k1])), length, length,
+                                damping)
     quats = quat_mul(np.asarray(sl, np.float64), np.asarray(dq[:, 1:length], np.float64))
     quats /= np.linalg.norm(quats, axis=-1, keepdims=True)
     return quats, np.asarray(lerp, np.float64) + np.asarray(dr[:, 1:length], np.float64)

@@ -31,7 +31,7 @@ VARIANT_ORDER = ("holden1d", "vanilla", "cae", "holden1d_residual", "vanilla_res
 SECONDS = (1, 2, 4)   # time-matched gaps
 TRAIN_HINT = "inbetween train cae --run-dir runs/cae [--preset cpu model.variant=vanilla|holden1d]"
 
-__all__ = ["find_runs", "run"]
+__all__ = ["find_runs", "run", "val_score"]
 
 
 def find_runs(run_dir: str | None) -> dict:
@@ -114,6 +114,30 @@ def run(source: str | None, results_dir: str, run_dir: str | None, quick: bool =
     with open(os.path.join(results_dir, "cae_bench.md"), "w") as fh:
         fh.write(result["markdown"])
     return result
+
+
+def val_score(run, source: str | None) -> float:
+    """Checkpoint selection score (lower is better): the run's mean gap error over the time-matched gaps as a
+    ratio to linear fill's, on the validation split of ``source`` (files cut from the training data, held out
+    of a ``train.split=fit`` run; never the test subjects).  Clips of ``VAL_CLIP`` frames (the CMU validation
+    files are 38-137 frames long), so only the 1 s and 2 s gaps fit."""
+    from inbetween_jax.data import load_motions, resolve_source
+    from inbetween_jax.evaluation import infilling as proto
+    from inbetween_jax.models.cae.infer import fill, load
+    model = load(run)
+    src = resolve_source(source or run.data.get("source"))
+    if src not in _VAL_MOTIONS:
+        _VAL_MOTIONS[src] = load_motions(src, "val")
+    x = proto.test_clips(_VAL_MOTIONS[src], model.normalizer, VAL_CLIP, VAL_CLIP // 2)
+    fps = float(_VAL_MOTIONS[src][0].fps)
+    ours = _time_matched(lambda inp, mask: fill(model, inp, mask), x, model.normalizer, model.num_joints, fps, None)
+    lin = _time_matched(_baseline("linear"), x, model.normalizer, model.num_joints, fps, None)
+    return float(np.mean([ours["gaps"][s]["err"][0] / lin["gaps"][s]["err"][0] for s in ours["gaps"]]))
+
+
+VAL_METRIC = "val gap error / linear fill's"   # the name selection.json records for :func:`val_score`
+VAL_CLIP = 96          # frames per validation clip (a multiple of the CAE's total pooling, 8)
+_VAL_MOTIONS: dict = {}
 
 
 def _baseline(name: str):

@@ -4,9 +4,9 @@
 :mod:`inbetween_jax.evaluation.interaction`): the cross-space model (``run_dir``), the independent-characters
 baseline (the same network trained with ``model.interaction=false model.gan=false``, found next to
 ``run_dir``: ``<run_dir>_indep``, a ``_full`` -> ``_indep`` sibling, or ``run_dir/indep``) and per-character
-interpolation, plus ground truth for the interaction score.  Ablations: the same checkpoint with the refiner
-switched off, and ``<run_dir>_nogan`` (trained with ``model.gan=false``) when present.  Without a trained
-run the benchmark is skipped (the markdown says why and how to train one).
+interpolation, plus ground truth for the interaction score. Ablations: the same checkpoint with the refiner
+switched off (on, for runs that leave it off), and ``<run_dir>_nogan`` (trained with ``model.gan=false``) when
+present. Without a trained run the benchmark is skipped (the markdown says why and how to train one).
 """
 from __future__ import annotations
 
@@ -49,7 +49,7 @@ def _restore(path):
     return load(load_run(path))
 
 
-def _model_method(trained, use_refiner=None, gap="true"):
+def _model_method(trained, use_refiner=None, gap="true", latent_scale=None):
     """Windows -> (S, B, 2, steps * l, J, 9) rollouts of ``trained`` (no early stop).
 
     ``gap`` is what a timing-conditioned model (``model.tta`` / ``model.residual``) is told about the gap:
@@ -67,7 +67,8 @@ def _model_method(trained, use_refiner=None, gap="true"):
     def method(b, steps, samples, key):
         if (steps, samples) not in cache:
             cache[(steps, samples)] = jax.jit(lambda p, w, kp, R, t, g, k: sample_rollouts(
-                p, w, kp, R, t, k, cfg, fa, steps, samples, threshold=-1.0, use_refiner=use_refiner, gap=g)[0])
+                p, w, kp, R, t, k, cfg, fa, steps, samples, threshold=-1.0, use_refiner=use_refiner, gap=g,
+                latent_scale=latent_scale)[0])
         B, L = b["x"].shape[0], b["x"].shape[2] - N_INPUT - 1
         g = np.full(B, L, np.float32) if gap == "true" else guess_gap_length(b).astype(np.float32)
         return np.asarray(cache[(steps, samples)](trained.params, b["x"][:, :, :N_INPUT], b["keypose"], b["rel_R"],
@@ -153,6 +154,9 @@ def run(source, results_dir: str, run_dir, quick: bool = False) -> dict:
         if cfg.model.refiner:
             methods["w/o Motion Refiner (same checkpoint, refiner off)"] = ("interaction",
                                                                           _model_method(trained, False))
+        else:   # improved: the refiner is trained but off at inference (chosen on the validation take)
+            methods["with Motion Refiner (same checkpoint, refiner on)"] = ("interaction",
+                                                                          _model_method(trained, True))
         nogan = full_dir + "_nogan"
         if _has_run(nogan):
             g = _restore(nogan)
@@ -238,6 +242,56 @@ def run(source, results_dir: str, run_dir, quick: bool = False) -> dict:
     with open(os.path.join(results_dir, "interaction_table.json"), "w") as f:
         json.dump(out, f, indent=1, default=float)
     return out
+
+
+VAL_LENGTHS = (30, 50)
+
+
+def val_score(run, source, use_refiner=None, max_windows: int = 64, latent_scale=None) -> float:
+    """Checkpoint selection score (lower is better): mean L2P at 30 and 50 frames, true gap, one sample, on
+    the validation split of ``source``'s pairs (:func:`~.data.split_pairs`: a held-out training take of real
+    pairs, never the test takes), on the L2P scale of the ``fit`` pairs.  use_refiner / latent_scale: None =
+    as configured."""
+    import jax
+    import jax.numpy as jnp
+
+    from inbetween_jax import metrics
+    from inbetween_jax.evaluation import interaction as proto
+    from inbetween_jax.models.interaction.features import to_common_space
+    from inbetween_jax.models.interaction.infer import load
+    trained = load(run)
+    d = trained.cfg.data
+    fit, windows, stats = _val_data(source or run.data.get("source"), d.pair_distance, d.split, d.pos_scale,
+                                     max_windows)
+    method = _model_method(trained, use_refiner, latent_scale=latent_scale)
+    scores = []
+    for L in VAL_LENGTHS:
+        b = windows[L]
+        pred = method(b, -(-L // d.n_pred), 1, jax.random.key(L))[0, :, :, :L]
+        P = np.asarray(to_common_space(jnp.asarray(pred), b["rel_R"], b["rel_t"]))[..., :3]
+        G = np.asarray(to_common_space(jnp.asarray(b["x"][:, :, proto.N_INPUT:proto.N_INPUT + L]), b["rel_R"],
+                                       b["rel_t"]))[..., :3]
+        scores.append(np.mean([metrics.l2p(P[:, c], G[:, c], *stats) for c in (0, 1)]))
+    return float(np.mean(scores))
+
+
+def _val_data(source, distance, fractions, pos_scale, max_windows):
+    """(fit pairs, ``{L: windows}`` of the validation pairs, L2P stats of the fit pairs); ValueError when the
+    validation split has no window of every length."""
+    from inbetween_jax.evaluation import interaction as proto
+    from inbetween_jax.models.interaction.data import load_pairs, split_pairs
+    key = (source, distance, tuple(fractions), pos_scale, max_windows)
+    if key not in _VAL_CACHE:
+        pairs = load_pairs(source, distance)
+        fit, val = split_pairs(pairs, "fit", fractions), split_pairs(pairs, "val", fractions)
+        windows = proto.table1_windows(val, pos_scale, max_windows, VAL_LENGTHS) if val else {}
+        if not all(windows.get(L) for L in VAL_LENGTHS):
+            raise ValueError(f"{source}: the validation split has no {'/'.join(map(str, VAL_LENGTHS))}-frame window")
+        _VAL_CACHE[key] = (fit, windows, proto.l2p_stats(fit, pos_scale))
+    return _VAL_CACHE[key]
+
+
+_VAL_CACHE: dict = {}
 
 
 def _load_run_data(path) -> dict:

@@ -28,6 +28,12 @@ e.g. ``model.hidden=64 train.batch_size=8 model.interaction=false``.  Presets (:
     improved L2Q by 30 % over interpolation while its L2P got worse than its own untrained lerp, on the
     training takes too (3.85 -> 4.16 at 30 frames).
   - ``model.residual`` also starts the refiner at the identity (zero output layer).
+  - ``train.split=fit``: one training take is held out (:func:`~.data.split_pairs`) and the checkpoint is
+    chosen on it at the end of the run (``bench.val_score``); the paper selects on its 5 % validation part.
+  - ``model.refiner=false``: the refiner is still trained (its loss sees stop-gradient predictions, so the
+    generator is the same either way) but not applied at inference: on the held-out take it raised the
+    30 / 50-frame L2P from 5.03 to 5.45 (step 750, docs/results/interaction.md).  ``model.refiner=true``
+    puts it back.
 * ``cpu``: the paper's method at CPU size: sizes and schedule chosen for a ~30 min CPU run (the paper lists
   no layer sizes).
 * ``paper``: the values the paper states (Sec. 5.1 / 4.2: T = 20, l = 10, P = 3 (30 predicted frames),
@@ -90,6 +96,7 @@ class ModelConfig:
     interaction: bool = True       # cross-space interaction modelling (transform + VAE + FiLM)
     gan: bool = True               # PAE + interaction discriminator
     refiner: bool = True           # motion refiner at inference
+    latent_scale: float = 1.0      # inference: z = mu + latent_scale * sigma * eps (1: as trained; 0: the mean)
     stop_threshold: float = 0.15   # rollout stops when both characters' mean joint distance to keypose < this (m)
     max_frames: int = 200          # rollout cap
     key_offsets: bool = False      # per-joint offsets keypose - last input frame as extra node input
@@ -141,10 +148,11 @@ def get_config(preset: str = DEFAULT_PRESET) -> Config:
     if preset == "cpu":
         return Config()
     if preset == "improved":
-        return Config(model=ModelConfig(key_offsets=True, residual=True, tta=True, pjd_frames=40),
+        return Config(model=ModelConfig(key_offsets=True, residual=True, tta=True, pjd_frames=40, refiner=False),
                       data=DataConfig(ar_steps=4, key_min=60, key_max=80, key_inside=0.5, ss_max=1.0,
                                       ss_ramp_steps=2000),
-                      loss=LossConfig(w_pos=20.0, w_adv=0.001, adv_start=1500, adv_ramp=1500))
+                      loss=LossConfig(w_pos=20.0, w_adv=0.001, adv_start=1500, adv_ramp=1500),
+                      train=dataclasses.replace(_CPU_TRAIN, split="fit", keep_checkpoints=0))
     if preset == "paper":
         return Config(data=DataConfig(split=(0.90, 0.05, 0.05)), train=dataclasses.replace(_CPU_TRAIN, lr=1e-4))
     if preset == "tiny":

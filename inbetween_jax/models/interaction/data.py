@@ -281,14 +281,30 @@ def load_pairs(source: Optional[str] = None, distance: float = 150.0) -> list:
 
 def split_pairs(pairs: Sequence[PairedMotion], split: str, fractions=(0.85, 0.05, 0.10)) -> list:
     """Temporal split of every pair (the paper's 90/5/5 style split, here 85/5/10 by default so that
-    long-horizon test windows fit): ``split`` in train / val / test.  Pairs with a fixed ``split`` are kept
-    whole in theirs (``val`` is then the test pairs)."""
-    idx = {"train": 0, "val": 1, "test": 2}[split]
+    long-horizon test windows fit): ``split`` in train / val / test, or ``fit`` (train without val).
+
+    Pairs with a fixed ``split`` (whole takes) are kept whole in theirs; their validation split is the last
+    training pair in name order (when there are at least two), held out of ``fit`` together with the
+    constructed pairs that share a clip with it -- checkpoint selection never sees the test takes.  A
+    temporally split pair's ``fit`` part is its ``train`` part (its ``val`` part lies between train and test)."""
+    if split not in ("train", "val", "test", "fit"):
+        raise ValueError(f"unknown pair split {split!r}; choose train, val, test or fit")
+    fixed_train = sorted(p.name for p in pairs if p.split == "train")
+    held = set(fixed_train[-1:]) if len(fixed_train) >= 2 else set()
+    clips = {c for p in pairs if p.name in held and p.constructed for c in p.name.split("+")}
+    shares_clip = lambda p: p.constructed and bool(clips & set(p.name.split("+")))  # noqa: E731
+    idx = {"train": 0, "fit": 0, "val": 1, "test": 2}[split]
     edges = np.cumsum((0.0,) + tuple(fractions))
     out = []
     for p in pairs:
         if p.split is not None:
-            if p.split == split or (split == "val" and p.split == "test"):
+            if split == "val":
+                keep = p.name in held
+            elif split == "fit":
+                keep = p.split == "train" and p.name not in held and not shares_clip(p)
+            else:
+                keep = p.split == split
+            if keep:
                 out.append(p)
             continue
         a, b = int(round(edges[idx] * p.num_frames)), int(round(edges[idx + 1] * p.num_frames))

@@ -157,12 +157,13 @@ def cross_space_inverse(rel, other, rel_R, rel_t, forward_axis):
     return apply_space(in_other, Rt[:, :, None], -jnp.einsum("...ij,...j->...i", Rt, rel_t)[:, :, None])
 
 
-def generator_step(gen_params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, tta=None):
+def generator_step(gen_params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, tta=None, latent_scale=1.0):
     """One prediction step for both characters.
 
     gen_params: ``params["gen"]``; window (B, 2, T, J, 9), keypose (B, 2, J, 9), rel_R (B, 2, 3, 3),
     rel_t (B, 2, 3), key: PRNG key; tta (B,) frames from the window's last frame to the keyframe (used with
-    ``model.tta`` / ``model.residual``; required with ``model.tta``).  Returns dict: pred (B, 2, l, J, 9),
+    ``model.tta`` / ``model.residual``; required with ``model.tta``); latent_scale: the latent's noise scale
+    (1 in training; inference uses ``model.latent_scale``).  Returns dict: pred (B, 2, l, J, 9),
     coarse (B, 2, l, J, 9), mu / logvar (B, 2, J, Z) (zeros (B, 2, J, 1) when interaction modelling is off).
 
     With ``model.residual`` the window is padded with :func:`lerp_to_keypose` (``tta`` frames, else
@@ -204,7 +205,7 @@ def generator_step(gen_params, window, keypose, rel_R, rel_t, key, cfg, forward_
         _, ml = gen.rel_enc(_to_nodes(dct(rel, axis=2, num_coeffs=m.dct_coeffs)))
         mu, logvar = jnp.split(ml, 2, axis=-1)
         logvar = jnp.clip(logvar, -8.0, 4.0)
-        z = reparameterize(mu, logvar, key)
+        z = reparameterize(mu, logvar + 2.0 * jnp.log(jnp.maximum(latent_scale, 1e-12)), key)
         h = film(h, *gen.film(z))
         mu, logvar = mu.reshape(B, 2, J, -1), logvar.reshape(B, 2, J, -1)
     else:
@@ -283,7 +284,7 @@ def guess_gap(last, keypose, cfg):
 
 
 def rollout(params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, num_steps: int, use_refiner=None,
-            threshold=None, gap=None):
+            threshold=None, gap=None, latent_scale=None):
     """Inference autoregression with ``lax.scan`` over ``num_steps`` steps of l frames.
 
     Once both characters' mean joint distance to their keyposes is below ``threshold`` (model units) after
@@ -291,10 +292,12 @@ def rollout(params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, num_s
     ``gap`` (scalar or (B,)): frames to generate before the keyframe, the time-to-arrival input of
     ``model.tta`` / ``model.residual`` models (the keyframe is frame ``gap + 1`` after the window).  Without
     it: ``num_steps * l`` when ``threshold < 0`` (a fixed-length rollout), else :func:`guess_gap`.
+    ``use_refiner`` / ``latent_scale``: None = ``model.refiner`` / ``model.latent_scale``.
     Returns (frames (B, 2, num_steps * l, J, 9), length (B,) int32 = frames generated before stopping;
     ``num_steps * l`` when the threshold was never reached).
     """
     use_refiner = cfg.model.refiner if use_refiner is None else use_refiner
+    latent_scale = cfg.model.latent_scale if latent_scale is None else latent_scale
     threshold = cfg.model.stop_threshold if threshold is None else threshold
     l = cfg.data.n_pred
     B = window.shape[0]
@@ -307,7 +310,7 @@ def rollout(params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, num_s
         win, done, length = carry
         k, p = inp
         tta = None if tta0 is None else tta0 - p * l
-        out = generator_step(params["gen"], win, keypose, rel_R, rel_t, k, cfg, forward_axis, tta)
+        out = generator_step(params["gen"], win, keypose, rel_R, rel_t, k, cfg, forward_axis, tta, latent_scale)
         pred = out["pred"]
         if use_refiner:
             pred = refine(params["ref"], pred, cfg)

@@ -27,15 +27,16 @@ def interpolation_path(start: dict, target: dict, length, max_length: int):
     return q, r
 
 
-def base_path(start: dict, target: dict, length, max_length: int, velocity: bool = False):
+def base_path(start: dict, target: dict, length, max_length: int, velocity: bool = False, damping: float = 0.0):
     """The residual decoder's base at times 0..max_length: ``(q (B, T1, J, 4), r (B, T1, 3))``.
 
     start: ``q`` (B, J, 4), ``r`` (B, 3) and, for the velocity path, ``qp`` (B, J, 4) the previous frame's local
     quaternions and ``v`` (B, 3) the root's displacement from the previous frame.  velocity: add the Hermite
-    offset (module docstring) when ``start`` carries ``qp`` and ``v``; otherwise the plain interpolation."""
+    offset (module docstring; ``damping`` per frame, ``model.base_damping``) when ``start`` carries ``qp`` and
+    ``v``; otherwise the plain interpolation."""
     q, r = interpolation_path(start, target, length, max_length)
     if not (velocity and "qp" in start and "v" in start):
         return q, r
     dq, dr = velocity_offsets(start["qp"], start["q"], align_sign(target["q"], start["q"]), start["r"] - start["v"],
-                              start["r"], target["r"], length, max_length)
+                              start["r"], target["r"], length, max_length, damping)
     return quat_mul(q, dq), r + dr

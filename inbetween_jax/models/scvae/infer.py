@@ -144,7 +144,9 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
     """Sample ``num_samples`` transitions of ``frames`` frames between two world-space keyframes.
 
     start / end: dicts with ``q`` (J, 4) unit local quaternions, ``r`` (3,) root position, ``c`` (4,) foot
-    contacts.  skeleton: the keyframes' skeleton (its offsets give the FK of the canonicalisation).
+    contacts; ``start`` may also carry the frame before it, ``qp`` (J, 4) and ``rp`` (3,), which models trained
+    with the past frame (``ModelConfig.uses_past_frame``) continue (ignored by the others).
+    skeleton: the keyframes' skeleton (its offsets give the FK of the canonicalisation).
     forward_axis: the root's local facing axis (default: inferred from ``skeleton``).
     Returns ``q`` (S, frames + 2, J, 4) and ``r`` (S, frames + 2, 3) float64 in the keyframes' world space;
     frame 0 is ``start`` and frame ``frames + 1`` is ``end``, both exactly as given.
@@ -173,8 +175,11 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
     shift = np.array([roots[:, 0].mean(), 0.0, roots[:, 2].mean()])
     frame = lambda i, c: {"q": jnp.asarray(cq[:, i], jnp.float32), "r": jnp.asarray(cr[:, i], jnp.float32),  # noqa
                           "c": jnp.asarray(np.asarray(c, np.float32)[None])}
+    first = frame(0, start["c"])
+    if trained.cfg.model.uses_past_frame and "qp" in start:
+        first.update(_past_frame(start, yaw, cq[0, 0]))
     keys = jax.random.split(jax.random.key(seed), num_samples)
-    q, r = jax.device_get(_sample_pair(trained.params, trained.stats, frame(0, start["c"]), frame(1, end["c"]),
+    q, r = jax.device_get(_sample_pair(trained.params, trained.stats, first, frame(1, end["c"]),
                                        keys, trained.cfg.model, frames + 1))
     q, r = np.asarray(q, np.float64)[:, :frames + 2], np.asarray(r, np.float64)[:, :frames + 2]
     q[:, :, 0] = quat_mul(np.broadcast_to(yaw, q[:, :, 0].shape), q[:, :, 0])
@@ -182,6 +187,22 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
     q[:, 0], r[:, 0], q[:, -1], r[:, -1] = qs, roots[0], qe, roots[1]                 # exact keyframes
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     return {"q": quat_fix_sign_np(q, axis=1), "r": r}
+
+
+def _past_frame(start: dict, yaw, q0) -> dict:
+    """The start keyframe's ``v`` (1, 3) root displacement from the frame before and ``qp`` (1, J, 4) that
+    frame's local quaternions, turned into the canonical space (``yaw``: canonical -> world root rotation) and
+    sign-aligned to the canonical start keyframe ``q0`` (J, 4), as consecutive training frames are."""
+    from inbetween_jax.data.user_input import check_unit_quats
+    from inbetween_jax.geometry import quat_inv, quat_mul, quat_rotate
+    qp = np.array(check_unit_quats(start["qp"], "start's previous frame q"), np.float64)
+    inv = quat_inv(np.asarray(yaw, np.float64))
+    qp[0] = quat_mul(inv, qp[0])
+    qp = np.where(np.sum(qp * np.asarray(q0, np.float64), -1, keepdims=True) < 0, -qp, qp)
+    v = quat_rotate(inv, np.asarray(start["r"], np.float64) - np.asarray(start["rp"], np.float64))
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"start's previous frame r: expected 3 finite numbers, got {start['rp']!r}")
+    return {"v": jnp.asarray(v[None], jnp.float32), "qp": jnp.asarray(qp[None], jnp.float32)}
 
 
 def _is_lafan1_skeleton(skel) -> bool:
@@ -233,6 +254,12 @@ def infill(args, run):
         vf = trained.extra.get("contact_velfactor", GENERIC_CONTACT_VELFACTOR)
     start = {"q": sm.local_quats[sf], "r": sm.root_pos[sf], "c": keyframe_contacts(sm, sf, vf)}
     end = {"q": em.local_quats[ef], "r": em.root_pos[ef], "c": keyframe_contacts(em, ef, vf)}
+    past = trained.cfg.model.uses_past_frame and sf >= 1
+    if past:                        # the frame before the start keyframe: the model continues its motion
+        start.update(qp=sm.local_quats[sf - 1], rp=sm.root_pos[sf - 1])
+        notes.append(f"continuing the motion of the frame before the start keyframe ({sp})")
+    elif trained.cfg.model.uses_past_frame:
+        notes.append(f"the start keyframe is the first frame of {sp}: no motion to continue (plain interpolation base)")
     res = infill_between(trained, skel, start, end, args.frames, args.samples, args.seed, fa)
     finite_or_fail(run.run_dir, res["q"], res["r"])
     t = args.frames + 2
@@ -250,4 +277,5 @@ def infill(args, run):
         out = dataclasses.replace(sm, local_quats=q, local_pos=pos)
         samples.append((name, [out if keys is None else expand(out, keys, ps.match)], None))
     return InfillResult(samples=samples, summary={**keyframes, "frames": args.frames,
-                                                  "samples": args.samples, "step": trained.step}, notes=notes)
+                                                  "samples": args.samples, "step": trained.step,
+                                                  "past_frame": past}, notes=notes)

@@ -215,7 +215,8 @@ def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, k
     t0 = dict(target, v=zero_v)
     s0 = {n: s0[n] for n in ("q", "r", "c", "v")}
     t0 = {n: t0[n] for n in ("q", "r", "c", "v")}
-    base_q, base_r = base_path(start, target, length, max_length, cfg.base_velocity)   # (B, T1, J, 4), (B, T1, 3)
+    base_q, base_r = base_path(start, target, length, max_length, cfg.base_velocity,
+                               cfg.base_damping)   # (B, T1, J, 4), (B, T1, 3)
     s0["phase"] = phase_step(jax.lax.stop_gradient(params["fwd"]["phase"]), dict(s0, phase=jnp.zeros((b, PHASE_DIM))),
                              stats)
     carry_f = init_carry(cfg, b)
