@@ -11,7 +11,7 @@ import sys
 
 from inbetween_jax.models import REGISTRY
 from inbetween_jax.train.run import RunError, load_run
-from inbetween_jax.train.select import select_checkpoint
+from inbetween_jax.train.select import select_with_bench
 
 
 def main(argv=None) -> int:
@@ -29,8 +29,7 @@ def main(argv=None) -> int:
         print(f"select_checkpoint: {run.model} has no validation score", file=sys.stderr)
         return 2
     source = args.source or run.data.get("source")
-    out = select_checkpoint(args.run_dir, source, lambda r: bench.val_score(r, source),
-                            getattr(bench, "VAL_METRIC", "val L2P"))
+    out = select_with_bench(args.run_dir, source, bench)
     return 0 if out else 1
 
 

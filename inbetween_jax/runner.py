@@ -69,10 +69,9 @@ def train_model(model: str, preset: str | None = None, overrides: Sequence[str] 
     record_training(run_dir, training.num_steps, wall)
     bench = spec.module("bench")
     if tc.split == "fit" and hasattr(bench, "val_score"):
-        from inbetween_jax.train.select import select_checkpoint
+        from inbetween_jax.train.select import select_with_bench
         try:
-            select_checkpoint(run_dir, src, lambda r: bench.val_score(r, src), getattr(bench, "VAL_METRIC", "val L2P"),
-                              log=log)
+            select_with_bench(run_dir, src, bench, log=log)
         except ValueError as e:     # e.g. validation motion too short for the score's windows
             if log:
                 log(f"checkpoint selection skipped: {e}")

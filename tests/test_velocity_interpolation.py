@@ -147,7 +147,7 @@ def test_official_rows_give_the_velocity_model_its_past_frame():
     x_mean, x_std = l2p_stats(w.global_pose()[1])
     rows = official_rows(SimpleNamespace(cfg=cfg, state=state), bench, x_mean, x_std, "model")
     by = {(r["method"], r["frames"]): r for r in rows}
-    base = velocity_baseline_name(0.1)
+    base = velocity_baseline_name(cfg.model)
     assert {m for m, _ in by} == {"Slerp", base, "model"} and "damped 0.1 / frame" in base
     for (m, n), r in by.items():
         if m == "model":

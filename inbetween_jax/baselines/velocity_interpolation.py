@@ -9,9 +9,8 @@ the cubic Hermite curve whose start tangent is the motion's and whose end tangen
 path leaves the keyframe with the motion's velocity and reaches the target exactly.  ``damping`` (per frame,
 default 0) multiplies the offset by ``exp(-damping * t)``: the same start velocity, but the continued motion
 fades within about ``1 / damping`` frames instead of carrying across long gaps (where the cubic overshoots).
-Root: the displacement per
-frame; joints: the rotation vector of ``q_prev^-1 q`` in the joint's own frame, applied as ``q_interp *
-exp(offset)``.  No parameters, nothing learned.
+Root: the displacement per frame; joints: the rotation vector of ``q_prev^-1 q`` in the joint's own frame,
+applied as ``q_interp * exp(offset)``.  No parameters, nothing learned.
 """
 from __future__ import annotations
 

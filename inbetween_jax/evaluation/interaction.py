@@ -34,7 +34,8 @@ from inbetween_jax.models.interaction.layers import Discriminator, PeriodicAE, p
 __all__ = ["CLS_N", "N_INPUT", "LENGTHS", "PAPER_BOXING", "COLUMNS", "HEADERS", "global_quats",
            "InteractionClassifier", "train_classifier", "classify_windows", "table1_windows", "l2p_stats",
            "interpolation_method", "ground_truth_method", "hold_method", "guess_gap_length",
-           "guessed_interpolation_method", "independent_method", "keypose_distance_m", "arrival_stats", "evaluate", "wide_rows", "long_rows", "format_table"]
+           "guessed_interpolation_method", "independent_method", "keypose_distance_m", "arrival_stats", "pair_l2p",
+           "evaluate", "wide_rows", "long_rows", "format_table"]
 
 CLS_N = 30          # PJD frames per classifier window (paper: N = 30)
 N_INPUT = 20        # context frames of every test window (paper: T = 20)
@@ -269,6 +270,15 @@ def arrival_stats(method, b, threshold_m: float = 0.15, key=None, pos_scale: flo
                 true_gap=int(L), threshold_m=float(threshold_m))
 
 
+def pair_l2p(pred, b, stats) -> float:
+    """L2P of both characters' frames ``pred`` (B, 2, L, J, 9) against the window's ground truth after its
+    context, in the common (character A key) space, averaged over the two characters."""
+    L = pred.shape[2]
+    P = np.asarray(to_common_space(jnp.asarray(pred), b["rel_R"], b["rel_t"]))
+    G = np.asarray(to_common_space(jnp.asarray(b["x"][:, :, N_INPUT:N_INPUT + L]), b["rel_R"], b["rel_t"]))
+    return float(np.mean([metrics.l2p(P[:, c, ..., :3], G[:, c, ..., :3], *stats) for c in (0, 1)]))
+
+
 def evaluate(method, windows, stats, cls, feet, pos_scale, key, num_div=10) -> dict:
     """Table-1 metrics of one method. windows: {length: eval_windows dict}; stats: :func:`l2p_stats`;
     cls: (graphdef, params) of :func:`train_classifier`; feet: foot joint indices.  Returns {column: value}."""
@@ -285,7 +295,7 @@ def evaluate(method, windows, stats, cls, feet, pos_scale, key, num_div=10) -> d
         G = np.asarray(to_common_space(jnp.asarray(gt), b["rel_R"], b["rel_t"]))
         prevc = np.asarray(to_common_space(jnp.asarray(prev[:, :, None]), b["rel_R"], b["rel_t"]))[:, :, 0]
         if L in (30, 50):
-            res[f"l2p_{L}"] = float(np.mean([metrics.l2p(P[:, c, ..., :3], G[:, c, ..., :3], *stats) for c in (0, 1)]))
+            res[f"l2p_{L}"] = pair_l2p(pred[0], b, stats)
             qp, qg = global_quats(jnp.asarray(P), prevc), global_quats(jnp.asarray(G), prevc)
             res[f"l2q_{L}"] = float(np.mean([metrics.l2q(qp[:, c], qg[:, c]) for c in (0, 1)]))
             allc = np.stack([np.asarray(to_common_space(jnp.asarray(s), b["rel_R"], b["rel_t"])) for s in pred])

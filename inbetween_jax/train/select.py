@@ -13,7 +13,7 @@ from typing import Callable
 
 SELECTION_FILE = "selection.json"
 
-__all__ = ["SELECTION_FILE", "select_checkpoint", "selected_step"]
+__all__ = ["SELECTION_FILE", "select_checkpoint", "select_with_bench", "selected_step"]
 
 
 def selected_step(run_dir: str) -> int | None:
@@ -62,6 +62,13 @@ def select_checkpoint(run_dir: str, source: str, score_fn: Callable, metric: str
     if log:
         log(f"selected step {best} ({metric} {scores[best]:.4f} on the validation split)")
     return out
+
+
+def select_with_bench(run_dir: str, source: str, bench, log: Callable[[str], None] | None = print) -> dict:
+    """:func:`select_checkpoint` with a model's ``bench.val_score`` on ``source``, recorded under the bench's
+    ``VAL_METRIC`` name (default ``"val L2P"``)."""
+    return select_checkpoint(run_dir, source, lambda r: bench.val_score(r, source),
+                             getattr(bench, "VAL_METRIC", "val L2P"), log=log)
 
 
 def _known_scores(run_dir: str, source: str, metric: str) -> dict:

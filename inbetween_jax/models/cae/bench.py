@@ -14,14 +14,15 @@ a run with ``model.residual`` (``cae_residual``: the ``improved`` preset) -- the
 """
 from __future__ import annotations
 
+import functools
 import json
 import os
 import time
 
 import numpy as np
 
-LABELS = {"linear": "Linear interpolation", "hermite": "Hermite fill (limited cubic; baseline, not in paper)", "holden1d": "Holden-style 1D conv AE (60)",
-          "vanilla": "Vanilla AE (60)", "cae": "CAE (ours)", "holden1d_residual": "Holden-style 1D AE, residual",
+LABELS = {"linear": "Linear interpolation", "hermite": "Hermite fill (limited cubic; baseline, not in paper)",
+          "holden1d": "Holden-style 1D conv AE (60)", "vanilla": "Vanilla AE (60)", "cae": "CAE (ours)", "holden1d_residual": "Holden-style 1D AE, residual",
           "vanilla_residual": "Vanilla AE, residual", "cae_residual": "CAE, residual (improved)"}
 PAPER_T1 = {"linear": ("n/a", "10.45 (± 15.5)", "17.04 (± 24.4)"), "holden1d": ("4.44 (± 6.5)", "15.28 (± 19.1)",
             "18.26 (± 24.5)"), "vanilla": ("2.79 (± 6.7)", "7.45 (± 11.7)", "13.61 (± 21.6)"),
@@ -121,15 +122,13 @@ def val_score(run, source: str | None) -> float:
     ratio to linear fill's, on the validation split of ``source`` (files cut from the training data, held out
     of a ``train.split=fit`` run; never the test subjects).  Clips of ``VAL_CLIP`` frames (the CMU validation
     files are 38-137 frames long), so only the 1 s and 2 s gaps fit."""
-    from inbetween_jax.data import load_motions, resolve_source
+    from inbetween_jax.data import resolve_source
     from inbetween_jax.evaluation import infilling as proto
     from inbetween_jax.models.cae.infer import fill, load
     model = load(run)
-    src = resolve_source(source or run.data.get("source"))
-    if src not in _VAL_MOTIONS:
-        _VAL_MOTIONS[src] = load_motions(src, "val")
-    x = proto.test_clips(_VAL_MOTIONS[src], model.normalizer, VAL_CLIP, VAL_CLIP // 2)
-    fps = float(_VAL_MOTIONS[src][0].fps)
+    motions = _val_motions(resolve_source(source or run.data.get("source")))
+    x = proto.test_clips(motions, model.normalizer, VAL_CLIP, VAL_CLIP // 2)
+    fps = float(motions[0].fps)
     ours = _time_matched(lambda inp, mask: fill(model, inp, mask), x, model.normalizer, model.num_joints, fps, None)
     lin = _time_matched(_baseline("linear"), x, model.normalizer, model.num_joints, fps, None)
     return float(np.mean([ours["gaps"][s]["err"][0] / lin["gaps"][s]["err"][0] for s in ours["gaps"]]))
@@ -137,7 +136,13 @@ def val_score(run, source: str | None) -> float:
 
 VAL_METRIC = "val gap error / linear fill's"   # the name selection.json records for :func:`val_score`
 VAL_CLIP = 96          # frames per validation clip (a multiple of the CAE's total pooling, 8)
-_VAL_MOTIONS: dict = {}
+
+
+@functools.lru_cache(maxsize=2)
+def _val_motions(source: str) -> list:
+    """The validation split's motions of ``source``, read once per process (selection scores every checkpoint)."""
+    from inbetween_jax.data import load_motions
+    return load_motions(source, "val")
 
 
 def _baseline(name: str):

@@ -10,6 +10,7 @@ present. Without a trained run the benchmark is skipped (the markdown says why a
 """
 from __future__ import annotations
 
+import functools
 import json
 import os
 import time
@@ -253,45 +254,31 @@ def val_score(run, source, use_refiner=None, max_windows: int = 64, latent_scale
     pairs, never the test takes), on the L2P scale of the ``fit`` pairs.  use_refiner / latent_scale: None =
     as configured."""
     import jax
-    import jax.numpy as jnp
 
-    from inbetween_jax import metrics
-    from inbetween_jax.evaluation import interaction as proto
-    from inbetween_jax.models.interaction.features import to_common_space
+    from inbetween_jax.evaluation.interaction import pair_l2p
     from inbetween_jax.models.interaction.infer import load
     trained = load(run)
     d = trained.cfg.data
-    fit, windows, stats = _val_data(source or run.data.get("source"), d.pair_distance, d.split, d.pos_scale,
-                                     max_windows)
+    windows, stats = _val_data(source or run.data.get("source"), d.pair_distance, tuple(d.split), d.pos_scale,
+                               max_windows)
     method = _model_method(trained, use_refiner, latent_scale=latent_scale)
-    scores = []
-    for L in VAL_LENGTHS:
-        b = windows[L]
-        pred = method(b, -(-L // d.n_pred), 1, jax.random.key(L))[0, :, :, :L]
-        P = np.asarray(to_common_space(jnp.asarray(pred), b["rel_R"], b["rel_t"]))[..., :3]
-        G = np.asarray(to_common_space(jnp.asarray(b["x"][:, :, proto.N_INPUT:proto.N_INPUT + L]), b["rel_R"],
-                                       b["rel_t"]))[..., :3]
-        scores.append(np.mean([metrics.l2p(P[:, c], G[:, c], *stats) for c in (0, 1)]))
-    return float(np.mean(scores))
+    return float(np.mean([pair_l2p(method(windows[L], -(-L // d.n_pred), 1, jax.random.key(L))[0, :, :, :L],
+                                   windows[L], stats) for L in VAL_LENGTHS]))
 
 
-def _val_data(source, distance, fractions, pos_scale, max_windows):
-    """(fit pairs, ``{L: windows}`` of the validation pairs, L2P stats of the fit pairs); ValueError when the
-    validation split has no window of every length."""
+@functools.lru_cache(maxsize=2)
+def _val_data(source, distance, fractions: tuple, pos_scale, max_windows):
+    """(``{L: windows}`` of the validation pairs, L2P stats of the fit pairs), read once per process (checkpoint
+    selection scores every checkpoint of a run on the same windows); ValueError when the validation split has
+    no window of every length."""
     from inbetween_jax.evaluation import interaction as proto
     from inbetween_jax.models.interaction.data import load_pairs, split_pairs
-    key = (source, distance, tuple(fractions), pos_scale, max_windows)
-    if key not in _VAL_CACHE:
-        pairs = load_pairs(source, distance)
-        fit, val = split_pairs(pairs, "fit", fractions), split_pairs(pairs, "val", fractions)
-        windows = proto.table1_windows(val, pos_scale, max_windows, VAL_LENGTHS) if val else {}
-        if not all(windows.get(L) for L in VAL_LENGTHS):
-            raise ValueError(f"{source}: the validation split has no {'/'.join(map(str, VAL_LENGTHS))}-frame window")
-        _VAL_CACHE[key] = (fit, windows, proto.l2p_stats(fit, pos_scale))
-    return _VAL_CACHE[key]
-
-
-_VAL_CACHE: dict = {}
+    pairs = load_pairs(source, distance)
+    fit, val = split_pairs(pairs, "fit", fractions), split_pairs(pairs, "val", fractions)
+    windows = proto.table1_windows(val, pos_scale, max_windows, VAL_LENGTHS) if val else {}
+    if not all(windows.get(L) for L in VAL_LENGTHS):
+        raise ValueError(f"{source}: the validation split has no {'/'.join(map(str, VAL_LENGTHS))}-frame window")
+    return windows, proto.l2p_stats(fit, pos_scale)
 
 
 def _load_run_data(path) -> dict:

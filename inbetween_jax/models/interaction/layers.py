@@ -88,9 +88,9 @@ def film(h, gamma, beta):
     return h * (1.0 + gamma) + beta
 
 
-def reparameterize(mu, logvar, key):
-    """z = mu + eps * exp(logvar / 2), eps ~ N(0, I): shapes (..., Z)."""
-    return mu + jax.random.normal(key, mu.shape, mu.dtype) * jnp.exp(0.5 * logvar)
+def reparameterize(mu, logvar, key, scale=1.0):
+    """z = mu + scale * eps * exp(logvar / 2), eps ~ N(0, I): shapes (..., Z) (scale 0: the mean)."""
+    return mu + scale * jax.random.normal(key, mu.shape, mu.dtype) * jnp.exp(0.5 * logvar)
 
 
 class Refiner(nnx.Module):

@@ -205,7 +205,7 @@ def generator_step(gen_params, window, keypose, rel_R, rel_t, key, cfg, forward_
         _, ml = gen.rel_enc(_to_nodes(dct(rel, axis=2, num_coeffs=m.dct_coeffs)))
         mu, logvar = jnp.split(ml, 2, axis=-1)
         logvar = jnp.clip(logvar, -8.0, 4.0)
-        z = reparameterize(mu, logvar + 2.0 * jnp.log(jnp.maximum(latent_scale, 1e-12)), key)
+        z = reparameterize(mu, logvar, key, latent_scale)
         h = film(h, *gen.film(z))
         mu, logvar = mu.reshape(B, 2, J, -1), logvar.reshape(B, 2, J, -1)
     else:

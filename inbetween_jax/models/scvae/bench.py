@@ -96,8 +96,8 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
                            variant=run_.preset)
                + flat_rows([r for r in official if r["method"] == variant], "official", data, model="scvae",
                            variant=run_.preset)
-               + flat_rows([r for r in official if r["method"].startswith(VELOCITY_BASELINE[:-1])], "official",
-                           data, model="slerp_velocity"))
+               + flat_rows([r for r in official if r["method"] == velocity_baseline_name(trained.cfg.model)],
+                           "official", data, model="slerp_velocity"))
     return {"markdown": md, "rows": records, "table": rows, "step": trained.step, "source": source,
             "windows": len(bench), "plots": [plot]}
 
@@ -106,9 +106,15 @@ OFFICIAL_LENGTHS = (5, 15, 30, 45)
 VELOCITY_BASELINE = "Slerp + start velocity (Hermite)"
 
 
-def velocity_baseline_name(damping: float) -> str:
-    """The official table's name of the velocity path with ``damping`` (per frame; 0: the plain cubic)."""
-    return VELOCITY_BASELINE if not damping else VELOCITY_BASELINE[:-1] + f", damped {damping:g} / frame)"
+def base_damping(model_cfg) -> float:
+    """The damping of the velocity path shown beside a model: its own residual base's, else 0 (the plain cubic)."""
+    return model_cfg.base_damping if model_cfg.base_velocity else 0.0
+
+
+def velocity_baseline_name(model_cfg) -> str:
+    """The official table's name of the velocity path shown beside a model (:func:`base_damping`)."""
+    d = base_damping(model_cfg)
+    return VELOCITY_BASELINE if not d else VELOCITY_BASELINE[:-1] + f", damped {d:g} / frame)"
 
 
 def official_rows(trained, bench, x_mean, x_std, name: str) -> list:
@@ -122,17 +128,17 @@ def official_rows(trained, bench, x_mean, x_std, name: str) -> list:
     lengths = [n for n in OFFICIAL_LENGTHS if n <= trained.cfg.data.trans_max and N_PAST + n < bench.window]
     from inbetween_jax.baselines import velocity_interpolate_transition
     rows = [r for r in official_baseline_table(bench, x_mean, x_std, lengths, N_PAST) if r["method"] != "Zero-velocity"]
-    m = trained.cfg.model
-    damping = m.base_damping if m.base_velocity else 0.0
+    base = velocity_baseline_name(trained.cfg.model)
     for n in lengths:   # the residual base of ``model.base_velocity``, on its own (nothing learned)
-        q, r = velocity_interpolate_transition(bench.local_quats, bench.root_pos, N_PAST, n, damping)
-        rows.append({"method": velocity_baseline_name(damping), "frames": n,
+        q, r = velocity_interpolate_transition(bench.local_quats, bench.root_pos, N_PAST, n,
+                                               base_damping(trained.cfg.model))
+        rows.append({"method": base, "frames": n,
                      **official_errors(bench, N_PAST, n, q, r, x_mean, x_std)})
     for n in lengths:
         s = infer.sample_transitions(trained.cfg.model, trained.state, bench, N_PAST, n, NUM_SAMPLES, velocity=True)
         per = [official_errors(bench, N_PAST, n, q, r, x_mean, x_std) for q, r in zip(s["q"], s["r"])]
         rows.append({"method": name, "frames": n, **{k: float(np.mean([p[k] for p in per])) for k in per[0]}})
-    order = {"Slerp": 0, velocity_baseline_name(damping): 1}
+    order = {"Slerp": 0, base: 1}
     return sorted(rows, key=lambda r: (r["frames"], order.get(r["method"], 2)))
 
 
