@@ -45,7 +45,12 @@ def test_presets_switches_off_in_paper_and_cpu_on_in_improved():
     assert imp.data.key_inside > 0 and imp.model.key_offsets and imp.model.residual and imp.model.tta
     assert imp.data.ss_max == 1.0 and imp.data.ar_steps > cpu.data.ar_steps and imp.loss.adv_start > 0
     assert imp.model.pjd_frames == imp.data.ar_steps * imp.data.n_pred and imp.loss.w_pos > 1
-    assert dataclasses.replace(imp.train, split="train", keep_checkpoints=cpu.train.keep_checkpoints) == cpu.train
+    assert dataclasses.replace(imp.train, split="train", keep_checkpoints=cpu.train.keep_checkpoints,
+                               lr_schedule="constant", lr_final=cpu.train.lr_final, warmup_steps=0,
+                               batch_size=cpu.train.batch_size, num_steps=cpu.train.num_steps) == cpu.train
+    # the same budget in samples seen
+    assert imp.train.batch_size * imp.train.num_steps == cpu.train.batch_size * cpu.train.num_steps
+    assert imp.train.lr_schedule == "cosine" and cpu.train.lr_schedule == "constant"    # chosen on validation
     assert imp.train.split == "fit" and not imp.model.refiner and cpu.model.refiner     # chosen on validation
     same = ("dct_coeffs", "conv_channels", "hidden", "gcn_layers", "latent", "refiner_hidden", "pae_hidden")
     assert all(getattr(imp.model, k) == getattr(cpu.model, k) for k in same)
