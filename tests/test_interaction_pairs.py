@@ -142,3 +142,17 @@ def test_real_pair_baselines_on_test_windows(take12):
     # the per-character hook applied to a per-character method changes nothing
     indep = proto.independent_method(proto.interpolation_method)(w, 3, 1, key)
     np.testing.assert_allclose(indep, proto.interpolation_method(w, 3, 1, key), atol=1e-5)
+
+
+@needs_pairs
+def test_windows_l2p_scores_ground_truth_zero_and_interpolation_as_pair_l2p(take12):
+    """The selection / all-windows score: ground truth scores 0; interpolation the direct pair L2P of its frames."""
+    from inbetween_jax.baselines.two_character import two_character_interpolation
+    from inbetween_jax.models.interaction.bench import windows_l2p
+    windows = {L: idata.eval_windows([take12], proto.N_INPUT, L, 60, 0.01, max_windows=3) for L in (30, 50)}
+    stats = proto.l2p_stats([take12], 0.01)
+    assert windows_l2p(proto.ground_truth_method, windows, stats) == pytest.approx([0.0, 0.0], abs=1e-6)
+    got = windows_l2p(proto.interpolation_method, windows, stats)
+    want = [proto.pair_l2p(np.asarray(two_character_interpolation(w["x"][:, :, proto.N_INPUT - 1], w["keypose"], L)),
+                           w, stats) for L, w in windows.items()]
+    assert got == pytest.approx(want, rel=1e-6) and all(v > 0.1 for v in got)

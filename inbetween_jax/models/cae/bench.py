@@ -22,8 +22,9 @@ import time
 import numpy as np
 
 LABELS = {"linear": "Linear interpolation", "hermite": "Hermite fill (limited cubic; baseline, not in paper)",
-          "holden1d": "Holden-style 1D conv AE (60)", "vanilla": "Vanilla AE (60)", "cae": "CAE (ours)", "holden1d_residual": "Holden-style 1D AE, residual",
-          "vanilla_residual": "Vanilla AE, residual", "cae_residual": "CAE, residual (improved)"}
+          "holden1d": "Holden-style 1D conv AE (60)", "vanilla": "Vanilla AE (60)", "cae": "CAE (ours)",
+          "holden1d_residual": "Holden-style 1D AE, residual", "vanilla_residual": "Vanilla AE, residual",
+          "cae_residual": "CAE, residual (improved)"}
 PAPER_T1 = {"linear": ("n/a", "10.45 (± 15.5)", "17.04 (± 24.4)"), "holden1d": ("4.44 (± 6.5)", "15.28 (± 19.1)",
             "18.26 (± 24.5)"), "vanilla": ("2.79 (± 6.7)", "7.45 (± 11.7)", "13.61 (± 21.6)"),
             "cae": ("2.75 (± 5.2)", "5.47 (± 8.6)", "7.00 (± 10.6)"), "hermite": ("-", "-", "-")}
@@ -117,6 +118,10 @@ def run(source: str | None, results_dir: str, run_dir: str | None, quick: bool =
     return result
 
 
+VAL_METRIC = "val gap error / linear fill's"   # the name selection.json records for :func:`val_score`
+VAL_CLIP = 96          # frames per validation clip (a multiple of the CAE's total pooling, 8)
+
+
 def val_score(run, source: str | None) -> float:
     """Checkpoint selection score (lower is better): the run's mean gap error over the time-matched gaps as a
     ratio to linear fill's, on the validation split of ``source`` (files cut from the training data, held out
@@ -132,10 +137,6 @@ def val_score(run, source: str | None) -> float:
     ours = _time_matched(lambda inp, mask: fill(model, inp, mask), x, model.normalizer, model.num_joints, fps, None)
     lin = _time_matched(_baseline("linear"), x, model.normalizer, model.num_joints, fps, None)
     return float(np.mean([ours["gaps"][s]["err"][0] / lin["gaps"][s]["err"][0] for s in ours["gaps"]]))
-
-
-VAL_METRIC = "val gap error / linear fill's"   # the name selection.json records for :func:`val_score`
-VAL_CLIP = 96          # frames per validation clip (a multiple of the CAE's total pooling, 8)
 
 
 @functools.lru_cache(maxsize=2)

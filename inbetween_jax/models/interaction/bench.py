@@ -253,17 +253,24 @@ def val_score(run, source, use_refiner=None, max_windows: int = 64, latent_scale
     the validation split of ``source``'s pairs (:func:`~.data.split_pairs`: a held-out training take of real
     pairs, never the test takes), on the L2P scale of the ``fit`` pairs.  use_refiner / latent_scale: None =
     as configured."""
-    import jax
-
-    from inbetween_jax.evaluation.interaction import pair_l2p
     from inbetween_jax.models.interaction.infer import load
     trained = load(run)
     d = trained.cfg.data
     windows, stats = _val_data(source or run.data.get("source"), d.pair_distance, tuple(d.split), d.pos_scale,
                                max_windows)
     method = _model_method(trained, use_refiner, latent_scale=latent_scale)
-    return float(np.mean([pair_l2p(method(windows[L], -(-L // d.n_pred), 1, jax.random.key(L))[0, :, :, :L],
-                                   windows[L], stats) for L in VAL_LENGTHS]))
+    return float(np.mean(windows_l2p(method, windows, stats, d.n_pred)))
+
+
+def windows_l2p(method, windows, stats, n_pred: int = 10, lengths=VAL_LENGTHS) -> list:
+    """L2P of one sample of ``method`` (a bench method: ``(windows, steps, samples, key) -> (S, B, 2, F, J, 9)``)
+    on ``windows[L]`` for each L of ``lengths``, the sample drawn with key ``jax.random.key(L)``; stats: the
+    L2P normalisation (:func:`~inbetween_jax.evaluation.interaction.l2p_stats`)."""
+    import jax
+
+    from inbetween_jax.evaluation.interaction import pair_l2p
+    return [pair_l2p(np.asarray(method(windows[L], -(-L // n_pred), 1, jax.random.key(L)))[0, :, :, :L], windows[L],
+                     stats) for L in lengths]
 
 
 @functools.lru_cache(maxsize=2)

@@ -1,0 +1,52 @@
+"""L2P at 30 / 50 frames on every test window of a real-pair source, for interaction runs and the baselines.
+
+    python experiments/interaction_all_windows.py RUN_DIR [RUN_DIR ...] [--source ../shared/data/cmu_pairs]
+
+The bench's quick mode (what ``make bench`` runs) scores 24 windows per length; this scores all of them (one
+sample, true gap and guessed gap, the bench's L2P scale: statistics of the training pairs), and prints each
+run's ratio to interpolation with the true / the guessed gap length.  RUN_DIR is a training run (its
+validation-selected step) or a shipped weights folder.  docs/results/interaction.md quotes its output.
+"""
+import argparse
+import sys
+
+from inbetween_jax.errors import UserError
+from inbetween_jax.train.run import load_run
+
+LENGTHS = (30, 50)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("run_dirs", nargs="+")
+    p.add_argument("--source", default="../shared/data/cmu_pairs")
+    args = p.parse_args(argv)
+    from inbetween_jax.evaluation import interaction as proto
+    from inbetween_jax.models.interaction.bench import _model_method, windows_l2p
+    from inbetween_jax.models.interaction.config import DataConfig
+    from inbetween_jax.models.interaction.data import load_pairs, split_pairs
+    from inbetween_jax.models.interaction.infer import load
+    d = DataConfig()
+    try:
+        pairs = load_pairs(args.source, d.pair_distance)
+        trained = [load(load_run(r)) for r in args.run_dirs]
+    except (UserError, ValueError, OSError) as e:   # RunError is a ValueError
+        print(f"interaction_all_windows: {e}", file=sys.stderr)
+        return 2
+    train, test = split_pairs(pairs, "train", d.split), split_pairs(pairs, "test", d.split)
+    stats = proto.l2p_stats(train, d.pos_scale)
+    windows = proto.table1_windows(test, d.pos_scale, 10 ** 6, LENGTHS)
+    row = lambda method: windows_l2p(method, windows, stats, d.n_pred, LENGTHS)  # noqa: E731
+    fmt = lambda v: " / ".join(f"{x:.3f}" for x in v)  # noqa: E731
+    interp, guessed = row(proto.interpolation_method), row(proto.guessed_interpolation_method)
+    print(f"windows: {' / '.join(str(len(windows[L]['x'])) for L in LENGTHS)} at {' / '.join(map(str, LENGTHS))} "
+          f"frames; interpolation, true gap: {fmt(interp)}; guessed gap: {fmt(guessed)}")
+    for name, t in zip(args.run_dirs, trained):
+        true_gap, guess = row(_model_method(t)), row(_model_method(t, gap="guess"))
+        print(f"{name} (step {t.step}): true gap {fmt(true_gap)} ({fmt([a / b for a, b in zip(true_gap, interp)])}x); "
+              f"guessed gap {fmt(guess)} ({fmt([a / b for a, b in zip(guess, guessed)])}x)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
