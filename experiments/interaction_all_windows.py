@@ -1,14 +1,17 @@
 """L2P at 30 / 50 frames on every test window of a real-pair source, for interaction runs and the baselines.
 
-    python experiments/interaction_all_windows.py RUN_DIR [RUN_DIR ...] [--source ../shared/data/cmu_pairs]
+    python experiments/interaction_all_windows.py RUN_DIR [RUN_DIR ...] [--source ../shared/data/cmu_pairs] [--ensemble]
 
 The bench's quick mode (what ``make bench`` runs) scores 24 windows per length; this scores all of them (one
 sample, true gap and guessed gap, the bench's L2P scale: statistics of the training pairs), and prints each
 run's ratio to interpolation with the true / the guessed gap length.  RUN_DIR is a training run (its
-validation-selected step) or a shipped weights folder.  docs/results/interaction.md quotes its output.
+validation-selected step) or a shipped weights folder.  ``--ensemble`` adds a row for the mean of the runs'
+rollouts (one sample each, own keys).  docs/results/interaction.md quotes its output.
 """
 import argparse
 import sys
+
+import numpy as np
 
 from inbetween_jax.errors import UserError
 from inbetween_jax.train.run import load_run
@@ -20,6 +23,7 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("run_dirs", nargs="+")
     p.add_argument("--source", default="../shared/data/cmu_pairs")
+    p.add_argument("--ensemble", action="store_true", help="also score the mean of the runs' rollouts")
     args = p.parse_args(argv)
     from inbetween_jax.evaluation import interaction as proto
     from inbetween_jax.models.interaction.bench import _model_method, windows_l2p
@@ -41,11 +45,26 @@ def main(argv=None) -> int:
     interp, guessed = row(proto.interpolation_method), row(proto.guessed_interpolation_method)
     print(f"windows: {' / '.join(str(len(windows[L]['x'])) for L in LENGTHS)} at {' / '.join(map(str, LENGTHS))} "
           f"frames; interpolation, true gap: {fmt(interp)}; guessed gap: {fmt(guessed)}")
-    for name, t in zip(args.run_dirs, trained):
-        true_gap, guess = row(_model_method(t)), row(_model_method(t, gap="guess"))
-        print(f"{name} (step {t.step}): true gap {fmt(true_gap)} ({fmt([a / b for a, b in zip(true_gap, interp)])}x); "
+    rows = [(f"{name} (step {t.step})", _model_method(t), _model_method(t, gap="guess"))
+            for name, t in zip(args.run_dirs, trained)]
+    if args.ensemble:
+        rows.append((f"mean of {len(rows)} runs", mean_rollout([r[1] for r in rows]),
+                     mean_rollout([r[2] for r in rows])))
+    for name, true_method, guess_method in rows:
+        true_gap, guess = row(true_method), row(guess_method)
+        print(f"{name}: true gap {fmt(true_gap)} ({fmt([a / b for a, b in zip(true_gap, interp)])}x); "
               f"guessed gap {fmt(guess)} ({fmt([a / b for a, b in zip(guess, guessed)])}x)")
     return 0
+
+
+def mean_rollout(methods):
+    """A bench method averaging ``methods``' rollouts (one sample each, drawn with keys split from the call's)."""
+    import jax
+
+    def method(b, steps, samples, key):
+        keys = jax.random.split(key, len(methods))
+        return np.mean([np.asarray(m(b, steps, samples, k)) for m, k in zip(methods, keys)], axis=0)
+    return method
 
 
 if __name__ == "__main__":

@@ -12,7 +12,7 @@ import pytest
 
 from inbetween_jax.models.interaction import data as idata
 from inbetween_jax.models.interaction import model as ia
-from inbetween_jax.models.interaction.config import DEFAULT_PRESET, get_config
+from inbetween_jax.models.interaction.config import DEFAULT_PRESET, PRESETS, get_config
 from inbetween_jax.models.interaction.infer import Trained, infill_features
 from inbetween_jax.models.interaction.losses import adversarial_weight, generator_objective, \
     scheduled_sampling_prob
@@ -54,6 +54,8 @@ def test_presets_switches_off_in_paper_and_cpu_on_in_improved():
     assert imp.train.split == "fit" and not imp.model.refiner and cpu.model.refiner     # chosen on validation
     same = ("dct_coeffs", "conv_channels", "hidden", "gcn_layers", "latent", "refiner_hidden", "pae_hidden")
     assert all(getattr(imp.model, k) == getattr(cpu.model, k) for k in same)
+    # augmentation measured without gain on the validation take: off everywhere (same data as the paper)
+    assert all(get_config(n).data.tempo == () and not get_config(n).data.reverse for n in PRESETS)
 
 
 def test_default_batch_is_one_sample_batch_call(train_pairs):

@@ -156,3 +156,34 @@ def test_windows_l2p_scores_ground_truth_zero_and_interpolation_as_pair_l2p(take
     want = [proto.pair_l2p(np.asarray(two_character_interpolation(w["x"][:, :, proto.N_INPUT - 1], w["keypose"], L)),
                            w, stats) for L, w in windows.items()]
     assert got == pytest.approx(want, rel=1e-6) and all(v > 0.1 for v in got)
+
+
+@needs_pairs
+def test_tempo_and_reversed_copies_only_of_training_takes(tmp_path):
+    """``data.tempo`` adds each training take resampled from the files (speed 1.25: 120 Hz -> 24 Hz played at
+    30 Hz, so copy frame 4 is source time 1/6 s = original frame 5); ``data.reverse`` adds every pair played
+    backwards; validation and test pairs are never augmented."""
+    import dataclasses
+
+    from inbetween_jax.models.interaction.config import get_config
+    from inbetween_jax.models.interaction.train import load_data
+    for take in ("12", "13"):
+        for subject in ("60", "61"):
+            os.symlink(os.path.abspath(os.path.join(PAIRS_DIR, f"{subject}_{take}_scaled.bvh")),
+                       tmp_path / f"{subject}_{take}_scaled.bvh")
+    (tmp_path / "pairs.txt").write_text("60_12_scaled.bvh 61_12_scaled.bvh train\n"
+                                        "60_13_scaled.bvh 61_13_scaled.bvh test\n")
+    cfg = get_config("tiny")
+    cfg = dataclasses.replace(cfg, data=dataclasses.replace(cfg.data, tempo=(1.25,), reverse=True))
+    train = load_data(cfg, str(tmp_path), "train").pairs
+    assert [p.name for p in train] == ["60_12_scaled", "60_12_scaled@1.25x", "60_12_scaled@rev",
+                                       "60_12_scaled@1.25x@rev"]
+    orig, fast, rev = train[0], train[1], train[2]
+    assert orig.num_frames == 423 and fast.num_frames == 338 and fast.fps == 30.0   # floor(1689 * 24 / 120) + 1
+    np.testing.assert_array_equal(fast.feats[:, 4::4], orig.feats[:, 5::5][:, :fast.feats[:, 4::4].shape[1]])
+    assert not np.allclose(fast.feats[:, 1], orig.feats[:, 1])
+    np.testing.assert_array_equal(rev.feats, orig.feats[:, ::-1])
+    assert [p.name for p in load_data(cfg, str(tmp_path), "test").pairs] == ["60_13_scaled"]
+    constructed = [dataclasses.replace(orig, constructed=True)]
+    with pytest.raises(ValueError, match="data.tempo needs whole real takes"):
+        idata.augmented_pairs(constructed, str(tmp_path), (1.25,))

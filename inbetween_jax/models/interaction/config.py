@@ -53,7 +53,10 @@ Ablation switches (Table 1): ``model.interaction`` (False: "w/o interaction mode
 in-betweened independently in its own keypose space), ``model.gan`` ("w/o Inter. GAN"),
 ``model.refiner`` ("w/o Motion Refiner").  Beyond the paper (all off in ``paper`` / ``cpu``):
 ``data.key_inside``, ``model.key_offsets``, ``model.residual``, ``model.tta``, ``loss.w_pos``,
-``loss.adv_start`` / ``loss.adv_ramp``.  The autoregressive training length (``data.ar_steps``) and the
+``loss.adv_start`` / ``loss.adv_ramp``.  Training-data augmentation, off in every preset (measured in the
+sixth round of docs/results/interaction.md: no gain on the validation take): ``data.tempo`` (copies of the
+training takes played faster / slower, e.g. ``data.tempo=0.8,0.9,1.1,1.25``) and ``data.reverse``
+(time-reversed copies).  The autoregressive training length (``data.ar_steps``) and the
 scheduled-sampling curriculum (``data.ss_ramp_steps``, ``data.ss_max``) are ``data`` fields: they decide
 which frames a training sample holds and how often predictions are fed back as inputs.
 """
@@ -84,6 +87,8 @@ class DataConfig:
     ss_max: float = 0.5
     key_inside: float = 0.0        # fraction of each batch whose keyframe lies inside the predicted frames
                                    # (n_input + 1 .. n_input + P*l - 1); frames after it are the held keypose
+    tempo: tuple = ()              # real pairs: extra copies of every training take played at these speeds
+    reverse: bool = False          # extra time-reversed copies of every training pair (after ``tempo``)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -32,7 +32,7 @@ from inbetween_jax.models.interaction.features import (apply_space, facing_yaw, 
 
 __all__ = ["PairedMotion", "PairSet", "load_pair", "find_pair_files", "static_joints", "subset_skeleton",
            "real_pair_splits", "load_real_pairs", "place_facing", "construct_pairs",
-           "load_pairs", "split_pairs", "load_pair_set", "sample_batch", "eval_windows"]
+           "load_pairs", "augmented_pairs", "split_pairs", "load_pair_set", "sample_batch", "eval_windows"]
 
 LAFAN_NAME = re.compile(r"^(?P<action>.+)_(?P<subject>subject\d+)\.bvh$")
 TAKE_NAME = re.compile(r"^(?P<subject>[^_]+)_(?P<take>\d+)(?:_[^.]*)?\.bvh$", re.IGNORECASE)
@@ -278,6 +278,34 @@ def load_pairs(source: Optional[str] = None, distance: float = 150.0) -> list:
         raise FileNotFoundError(f"no pairable BVH clips in {folder!r}")
     return pairs
 
+
+def augmented_pairs(pairs: Sequence[PairedMotion], source: Optional[str], tempo=(), reverse: bool = False) -> list:
+    """``pairs`` plus augmented copies for training: for each speed ``s`` of ``tempo`` the same real takes
+    resampled from the files to ``fps / s`` and played at ``fps`` (``s`` > 1 faster; named ``<take>@<s>x``),
+    then, with ``reverse``, every pair so far played backwards (``<name>@rev``).  Window sampling weighs pairs
+    by length, so the copies take their share of every batch.
+
+    Raises:
+        ValueError: ``tempo`` for a source without real pairs, or a non-positive speed (one line).
+    """
+    out = list(pairs)
+    if tempo:
+        if any(p.constructed or p.split is None for p in pairs):
+            raise ValueError(f"{source}: data.tempo needs whole real takes (constructed or time-split pairs here)")
+        if any(not s > 0 for s in tempo):
+            raise ValueError(f"data.tempo: speeds must be positive, got {list(tempo)}")
+        from inbetween_jax.data.datasets import resolve_source
+        folder, names = resolve_source(source), {p.name for p in pairs}
+        for s in tempo:
+            fps = pairs[0].fps
+            copies = [p for p in load_real_pairs(folder, fps / s) if p.name in names]
+            if any(p.feats.shape[2] != pairs[0].feats.shape[2] for p in copies):
+                raise ValueError(f"{folder}: at speed {s:g} other joints are static; drop that speed")
+            out += [dataclasses.replace(p, fps=fps, name=f"{p.name}@{s:g}x") for p in copies]
+    if reverse:
+        out += [dataclasses.replace(p, feats=np.ascontiguousarray(p.feats[:, ::-1]), name=f"{p.name}@rev")
+                for p in out]
+    return out
 
 def split_pairs(pairs: Sequence[PairedMotion], split: str, fractions=(0.85, 0.05, 0.10)) -> list:
     """Temporal split of every pair (the paper's 90/5/5 style split, here 85/5/10 by default so that

@@ -11,12 +11,14 @@ State: ``{"params": {gen, ref, pae, disc} (nested dicts of arrays), "opt": optax
 """
 from __future__ import annotations
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
 
-from inbetween_jax.models.interaction.data import PairSet, load_pair_set, sample_batch
+from inbetween_jax.models.interaction.data import PairSet, augmented_pairs, load_pair_set, sample_batch
 from inbetween_jax.models.interaction.losses import discriminator_objective, generator_objective
 from inbetween_jax.models.interaction.model import init_params
 from inbetween_jax.models.spec import Training
@@ -28,8 +30,14 @@ BATCH_KEYS = ("x", "keypose", "rel_R", "rel_t")
 
 
 def load_data(cfg, source, split: str = "train") -> PairSet:
-    """The ``split`` pairs of ``source`` (real pairs, else constructed ones; see :mod:`.data`)."""
-    return load_pair_set(source, split, cfg.data.pair_distance, cfg.data.split)
+    """The ``split`` pairs of ``source`` (real pairs, else constructed ones; see :mod:`.data`), with the
+    augmented copies of ``data.tempo`` / ``data.reverse`` (:func:`.data.augmented_pairs`) for the training
+    splits (``train`` / ``fit``; never the validation or test pairs)."""
+    d = cfg.data
+    data = load_pair_set(source, split, d.pair_distance, d.split)
+    if split in ("train", "fit") and (d.tempo or d.reverse):
+        data = dataclasses.replace(data, pairs=augmented_pairs(data.pairs, source, d.tempo, d.reverse))
+    return data
 
 
 def keyframe_index(x, keypose, tol: float = 1e-4):
@@ -121,6 +129,8 @@ def make_training(cfg, data: PairSet) -> Training:
                                                           "frames": data.num_frames},
                       "split": data.split, "fractions": list(d.split), "constructed": data.constructed},
                 extra={"num_joints": J, "forward_axis": [float(v) for v in data.forward_axis]})
-    describe = (f"{len(data.all_pairs)} {kind} pairs, {data.num_frames} {data.split} frames, {J} joints; "
-                f"batches of {cfg.train.batch_size} windows of {T + N} frames")
+    copies = sum("@" in p.name for p in pairs)
+    augmented = f" (with {copies} tempo / reversed copies)" if copies else ""
+    describe = (f"{len(data.all_pairs)} {kind} pairs, {data.num_frames} {data.split} frames{augmented}, "
+                f"{J} joints; batches of {cfg.train.batch_size} windows of {T + N} frames")
     return Training(init_fn, step_fn, batch_fn, cfg.train.num_steps, meta, describe)
