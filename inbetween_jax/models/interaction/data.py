@@ -295,9 +295,8 @@ def augmented_pairs(pairs: Sequence[PairedMotion], source: Optional[str], tempo=
         if any(not s > 0 for s in tempo):
             raise ValueError(f"data.tempo: speeds must be positive, got {list(tempo)}")
         from inbetween_jax.data.datasets import resolve_source
-        folder, names = resolve_source(source), {p.name for p in pairs}
+        folder, names, fps = resolve_source(source), {p.name for p in pairs}, pairs[0].fps
         for s in tempo:
-            fps = pairs[0].fps
             copies = [p for p in load_real_pairs(folder, fps / s) if p.name in names]
             if any(p.feats.shape[2] != pairs[0].feats.shape[2] for p in copies):
                 raise ValueError(f"{folder}: at speed {s:g} other joints are static; drop that speed")
@@ -306,6 +305,7 @@ def augmented_pairs(pairs: Sequence[PairedMotion], source: Optional[str], tempo=
         out += [dataclasses.replace(p, feats=np.ascontiguousarray(p.feats[:, ::-1]), name=f"{p.name}@rev")
                 for p in out]
     return out
+
 
 def split_pairs(pairs: Sequence[PairedMotion], split: str, fractions=(0.85, 0.05, 0.10)) -> list:
     """Temporal split of every pair (the paper's 90/5/5 style split, here 85/5/10 by default so that

@@ -129,7 +129,7 @@ def make_training(cfg, data: PairSet) -> Training:
                                                           "frames": data.num_frames},
                       "split": data.split, "fractions": list(d.split), "constructed": data.constructed},
                 extra={"num_joints": J, "forward_axis": [float(v) for v in data.forward_axis]})
-    copies = sum("@" in p.name for p in pairs)
+    copies = len(pairs) - len({p["name"] for p in data.all_pairs} & {p.name for p in pairs})
     augmented = f" (with {copies} tempo / reversed copies)" if copies else ""
     describe = (f"{len(data.all_pairs)} {kind} pairs, {data.num_frames} {data.split} frames{augmented}, "
                 f"{J} joints; batches of {cfg.train.batch_size} windows of {T + N} frames")
