@@ -1,12 +1,14 @@
 """L2P at 30 / 50 frames on every test window of a real-pair source, for interaction runs and the baselines.
 
     python experiments/interaction_all_windows.py RUN_DIR [RUN_DIR ...] [--source ../shared/data/cmu_pairs] [--ensemble]
+        [--members]
 
 The bench's quick mode (what ``make bench`` runs) scores 24 windows per length; this scores all of them (one
 sample, true gap and guessed gap, the bench's L2P scale: statistics of the training pairs), and prints each
 run's ratio to interpolation with the true / the guessed gap length.  RUN_DIR is a training run (its
 validation-selected step) or a shipped weights folder.  ``--ensemble`` adds a row for the mean of the runs'
-rollouts (one sample each, own keys).  docs/results/interaction.md quotes its output.
+rollouts (one sample each, own keys); ``--members`` adds a row for every member of an ensemble run
+(``model.members`` > 1) alone.  docs/results/interaction.md quotes its output.
 """
 import argparse
 import sys
@@ -24,9 +26,10 @@ def main(argv=None) -> int:
     p.add_argument("run_dirs", nargs="+")
     p.add_argument("--source", default="../shared/data/cmu_pairs")
     p.add_argument("--ensemble", action="store_true", help="also score the mean of the runs' rollouts")
+    p.add_argument("--members", action="store_true", help="also score every member of an ensemble run alone")
     args = p.parse_args(argv)
     from inbetween_jax.evaluation import interaction as proto
-    from inbetween_jax.models.interaction.bench import _model_method, windows_l2p
+    from inbetween_jax.models.interaction.bench import _model_method, member, windows_l2p
     from inbetween_jax.models.interaction.config import DataConfig
     from inbetween_jax.models.interaction.data import load_pairs, split_pairs
     from inbetween_jax.models.interaction.infer import load
@@ -50,6 +53,11 @@ def main(argv=None) -> int:
     if args.ensemble:
         rows.append((f"mean of {len(rows)} runs", mean_rollout([r[1] for r in rows]),
                      mean_rollout([r[2] for r in rows])))
+    if args.members:
+        for name, t in zip(args.run_dirs, trained):
+            alone = [member(t, i) for i in range(t.cfg.model.members)] if t.cfg.model.members > 1 else []
+            rows += [(f"{name} (step {t.step}), member {i} alone", _model_method(m), _model_method(m, gap="guess"))
+                     for i, m in enumerate(alone)]
     for name, true_method, guess_method in rows:
         true_gap, guess = row(true_method), row(guess_method)
         print(f"{name}: true gap {fmt(true_gap)} ({fmt([a / b for a, b in zip(true_gap, interp)])}x); "

@@ -5,8 +5,9 @@
 baseline (the same network trained with ``model.interaction=false model.gan=false``, found next to
 ``run_dir``: ``<run_dir>_indep``, a ``_full`` -> ``_indep`` sibling, or ``run_dir/indep``) and per-character
 interpolation, plus ground truth for the interaction score. Ablations: the same checkpoint with the refiner
-switched off (on, for runs that leave it off), and ``<run_dir>_nogan`` (trained with ``model.gan=false``) when
-present. Without a trained run the benchmark is skipped (the markdown says why and how to train one).
+switched off (on, for runs that leave it off), ``<run_dir>_nogan`` (trained with ``model.gan=false``) when
+present, and for an ensemble (``model.members`` > 1) its first member alone. Without a trained run the
+benchmark is skipped (the markdown says why and how to train one).
 """
 from __future__ import annotations
 
@@ -77,6 +78,15 @@ def _model_method(trained, use_refiner=None, gap="true", latent_scale=None):
     return method
 
 
+def member(trained, index: int = 0):
+    """Network ``index`` of an ensemble (``model.members`` > 1) as a single-network model (same checkpoint)."""
+    import dataclasses
+
+    import jax
+    cfg = dataclasses.replace(trained.cfg, model=dataclasses.replace(trained.cfg.model, members=1))
+    return dataclasses.replace(trained, cfg=cfg, params=jax.tree.map(lambda a: a[index], trained.params))
+
+
 def stop_stats(trained, b) -> dict:
     """Inference as in the paper: roll out until both characters are within ``model.stop_threshold`` of their
     keyposes (cap ``model.max_frames``).  b: eval windows.  -> reached fraction, mean frames, true gap."""
@@ -145,9 +155,14 @@ def run(source, results_dir: str, run_dir, quick: bool = False) -> dict:
     methods, stop_rule, notes = {}, {}, []
     indep = _restore(indep_dir) if indep_dir else None
     if trained is not None:
-        ours = f"Ours (cross-space, step {trained.step})"
+        M = cfg.model.members
+        ours = f"Ours (cross-space, step {trained.step})" if M == 1 else \
+            f"Ours (cross-space, mean of {M} members, step {trained.step})"
         methods[ours] = ("interaction", _model_method(trained))
         stop_rule[ours] = methods[ours][1]
+        if M > 1:
+            methods["Ours, its first member alone (same checkpoint)"] = ("interaction",
+                                                                         _model_method(member(trained)))
         if cfg.model.tta or cfg.model.residual:
             guessed = f"Ours, gap length guessed (step {trained.step})"
             methods[guessed] = ("interaction", _model_method(trained, gap="guess"))

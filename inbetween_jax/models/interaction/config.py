@@ -56,9 +56,12 @@ in-betweened independently in its own keypose space), ``model.gan`` ("w/o Inter.
 ``loss.adv_start`` / ``loss.adv_ramp``.  Training-data augmentation, off in every preset (measured in the
 sixth round of docs/results/interaction.md: no gain on the validation take): ``data.tempo`` (copies of the
 training takes played faster / slower, e.g. ``data.tempo=0.8,0.9,1.1,1.25``) and ``data.reverse``
-(time-reversed copies).  The autoregressive training length (``data.ar_steps``) and the
-scheduled-sampling curriculum (``data.ss_ramp_steps``, ``data.ss_max``) are ``data`` fields: they decide
-which frames a training sample holds and how often predictions are fed back as inputs.
+(time-reversed copies).  Ensembles: ``model.members=M`` (1 in every preset) trains M networks side by side
+in one run (``vmap``; each its own initialisation, batches and keys, so M times the compute) and selects and
+ships them as one model whose rollout is the mean of the members' rollouts (:func:`.model.rollout`).  The
+autoregressive training length (``data.ar_steps``) and the scheduled-sampling curriculum
+(``data.ss_ramp_steps``, ``data.ss_max``) are ``data`` fields: they decide which frames a training sample holds
+and how often predictions are fed back as inputs.
 """
 from __future__ import annotations
 
@@ -117,6 +120,8 @@ class ModelConfig:
     residual: bool = False         # predict a residual on a lerp from the last input frame toward the keypose
     lerp_frames: int = 30          # residual without tta: the lerp reaches the keypose this many frames ahead
     tta_speed: float = 0.03        # tta rollouts without a given gap: guess gap = keypose distance / this (m/frame)
+    members: int = 1               # ensemble: this many networks trained side by side (vmap), their predictions
+                                   # averaged at every autoregressive step of a rollout
 
 
 @dataclasses.dataclass(frozen=True)

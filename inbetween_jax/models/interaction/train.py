@@ -7,7 +7,9 @@ paper's keyframe placement, or some keyframes inside the predicted frames with t
 of real and generated PJD dynamics.  The parameter groups are disjoint and every group only receives
 gradients of its own loss, so one Adam over all groups equals independent optimisers.
 
-State: ``{"params": {gen, ref, pae, disc} (nested dicts of arrays), "opt": optax state, "step": int32}``.
+State: ``{"params": {gen, ref, pae, disc} (nested dicts of arrays), "opt": optax state, "step": int32}``.  With
+``model.members`` M > 1 every parameter and optimiser array has a leading member axis and one step trains the M
+members independently (``vmap``: each its own batch, key, gradient clip and Adam state).
 """
 from __future__ import annotations
 
@@ -87,9 +89,12 @@ def training_batch(pairs, rng: np.random.Generator, cfg) -> dict:
 
 
 def init_state(cfg, num_joints: int, key) -> dict:
-    """Fresh training state: ``{"params", "opt", "step"}`` (parameters from :func:`.model.init_params`)."""
+    """Fresh training state: ``{"params", "opt", "step"}`` (parameters from :func:`.model.init_params`; with
+    ``model.members`` > 1 parameters and optimiser state carry a leading member axis)."""
     params = init_params(key, cfg, num_joints)
-    return {"params": params, "opt": make_optimizer(cfg.train).init(params), "step": jnp.zeros((), jnp.int32)}
+    tx_init = make_optimizer(cfg.train).init
+    opt = tx_init(params) if cfg.model.members == 1 else jax.vmap(tx_init)(params)
+    return {"params": params, "opt": opt, "step": jnp.zeros((), jnp.int32)}
 
 
 def make_training(cfg, data: PairSet) -> Training:
@@ -102,26 +107,38 @@ def make_training(cfg, data: PairSet) -> Training:
     J = data.num_joints
     fa = np.asarray(data.forward_axis, np.float32)
     pairs = data.pairs
+    M = m.members
 
     def init_fn(key):
         return init_state(cfg, J, key)
 
-    def step_fn(state, batch, key):
-        params = state["params"]
-        batch = dict(batch, step=state["step"].astype(jnp.float32))
+    def member_step(params, opt, batch, key, step):
+        batch = dict(batch, step=step.astype(jnp.float32))
         grads, (metrics, aux) = jax.grad(generator_objective, has_aux=True)(params, batch, key, cfg, fa)
         if m.gan:
             dl, gd = jax.value_and_grad(discriminator_objective)(params["disc"], params["pae"], aux["pjd_real"],
                                                                  aux["pjd_fake"], cfg, J)
             grads = dict(grads, disc=gd)
             metrics["disc"] = dl
-        updates, opt = tx.update(grads, state["opt"], params)
-        params = optax.apply_updates(params, updates)
+        updates, opt = tx.update(grads, opt, params)
+        return optax.apply_updates(params, updates), opt, metrics
+
+    def step_fn(state, batch, key):
+        if M == 1:
+            params, opt, metrics = member_step(state["params"], state["opt"], batch, key, state["step"])
+        else:       # independent members: own parameters, optimiser state, batch and key; mean metrics
+            params, opt, metrics = jax.vmap(member_step, in_axes=(0, 0, 0, 0, None))(
+                state["params"], state["opt"], batch, jax.random.split(key, M), state["step"])
+            metrics = jax.tree.map(lambda v: jnp.mean(v, axis=0), metrics)
         return {"params": params, "opt": opt, "step": state["step"] + 1}, metrics
 
     def batch_fn(step, key):
+        """One batch (:func:`training_batch`), or with ``model.members`` M > 1 M of them stacked (M, B, ...)."""
         rng = np.random.default_rng(np.asarray(jax.random.key_data(key)).astype(np.uint32))
-        return training_batch(pairs, rng, cfg)
+        if M == 1:
+            return training_batch(pairs, rng, cfg)
+        batches = [training_batch(pairs, rng, cfg) for _ in range(M)]
+        return {k: np.stack([b[k] for b in batches]) for k in batches[0]}
 
     kind = "constructed" if data.constructed else "real"
     meta = dict(skeleton=data.skeleton.to_dict(), fps=float(pairs[0].fps), stats={},
@@ -131,6 +148,7 @@ def make_training(cfg, data: PairSet) -> Training:
                 extra={"num_joints": J, "forward_axis": [float(v) for v in data.forward_axis]})
     copies = len(pairs) - len({p["name"] for p in data.all_pairs} & {p.name for p in pairs})
     augmented = f" (with {copies} tempo / reversed copies)" if copies else ""
+    members = f"; {M} members trained side by side, each on its own batches" if M > 1 else ""
     describe = (f"{len(data.all_pairs)} {kind} pairs, {data.num_frames} {data.split} frames{augmented}, "
-                f"{J} joints; batches of {cfg.train.batch_size} windows of {T + N} frames")
+                f"{J} joints; batches of {cfg.train.batch_size} windows of {T + N} frames{members}")
     return Training(init_fn, step_fn, batch_fn, cfg.train.num_steps, meta, describe)
