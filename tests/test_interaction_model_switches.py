@@ -56,6 +56,8 @@ def test_presets_switches_off_in_paper_and_cpu_on_in_improved():
     assert all(getattr(imp.model, k) == getattr(cpu.model, k) for k in same)
     # augmentation measured without gain on the validation take: off everywhere (same data as the paper)
     assert all(get_config(n).data.tempo == () and not get_config(n).data.reverse for n in PRESETS)
+    # one network per preset: an ensemble (model.members) is M times the training budget, opted into by override
+    assert all(get_config(n).model.members == 1 for n in PRESETS)
 
 
 def test_default_batch_is_one_sample_batch_call(train_pairs):
