@@ -1,6 +1,6 @@
 """Interaction ensembles (``model.members``): members trained side by side are independent networks, a
-rollout is the mean of the members' rollouts, and the stop rule applied after the rollout equals stopping
-inside it.  Real clips: the shipped CMU mocap paired as two characters (constructed pairs)."""
+rollout is the mean of the members' rollouts, and the stop rule on the finished frames matches a numpy
+re-derivation.  Real clips: the shipped CMU mocap paired as two characters (constructed pairs)."""
 from __future__ import annotations
 
 import jax
@@ -56,21 +56,42 @@ def test_members_get_a_leading_axis_and_their_own_initialisation():
         ia.init_params(jax.random.key(0), apply_overrides(TIMED, ["model.members=0"]), 21)
 
 
-def test_stop_rule_after_the_rollout_equals_stopping_inside_it(windows, forward_axis):
+def _stopped_reference(full, kp, thr, l=10):
+    """The stop rule re-derived in numpy: (B, 2, F, J, 9) fixed-length frames -> held frames, lengths."""
+    full, kp = np.asarray(full, np.float64), np.asarray(kp, np.float64)
+    out, lengths = full.copy(), []
+    for i in range(len(full)):
+        n = full.shape[2]
+        for end in range(l - 1, full.shape[2], l):
+            d = np.linalg.norm(full[i, :, end, :, :3] - kp[i, :, :, :3], axis=-1).mean(-1)    # (2,)
+            if np.all(d < thr):
+                n = end + 1
+                break
+        out[i, :, n:] = full[i, :, n - 1:n]
+        lengths.append(n)
+    return out, lengths
+
+
+def test_stop_rule_holds_the_first_arriving_frame(windows, forward_axis):
+    """The rollout stops after the first step whose last frame has both characters within the threshold, and
+    repeats that frame (checked against a numpy re-derivation, at thresholds where windows stop at different
+    steps or never)."""
     params = _moved(ia.init_params(jax.random.key(0), TIMED, 21), jax.random.key(5))
     w, kp, R, t = _args(windows)
     roll = lambda thr: ia.rollout(params, w, kp, R, t, jax.random.key(2), TIMED, forward_axis, 6,  # noqa: E731
                                   threshold=thr, gap=GAP)
     full, full_len = roll(-1.0)
     assert np.all(np.asarray(full_len) == 60)
-    ends = np.stack([np.asarray(ia.keypose_distance(full[:, :, s], kp)).max(1) for s in range(9, 60, 10)])
+    ends = np.sort(np.stack([np.asarray(ia.keypose_distance(full[:, :, s], kp)).max(1) for s in range(9, 60, 10)]),
+                   axis=None)
+    mids = [(ends[k] + ends[k + 1]) / 2 for k in (len(ends) // 5, len(ends) // 2, 4 * len(ends) // 5)]
     lengths = set()
-    for thr in [0.0, 10.0] + list(np.quantile(ends, [0.2, 0.5, 0.8])):
-        inside, inside_len = roll(thr)
-        after, after_len = ia.stop_at_keypose(full, kp, thr, TIMED.data.n_pred)
-        np.testing.assert_array_equal(np.asarray(after_len), np.asarray(inside_len))
-        np.testing.assert_allclose(np.asarray(after), np.asarray(inside), atol=1e-6)
-        lengths |= set(np.asarray(inside_len).tolist())
+    for thr in [0.0, 10.0] + mids:            # halfway between two step-end distances: no float ties
+        got, got_len = roll(thr)
+        ref, ref_len = _stopped_reference(full, kp, thr)
+        assert np.asarray(got_len).tolist() == ref_len
+        np.testing.assert_allclose(np.asarray(got), ref, atol=1e-6)
+        lengths |= set(ref_len)
     assert len(lengths) >= 3                      # stops at different steps, and never (60) at threshold 0
 
 

@@ -120,8 +120,8 @@ class ModelConfig:
     residual: bool = False         # predict a residual on a lerp from the last input frame toward the keypose
     lerp_frames: int = 30          # residual without tta: the lerp reaches the keypose this many frames ahead
     tta_speed: float = 0.03        # tta rollouts without a given gap: guess gap = keypose distance / this (m/frame)
-    members: int = 1               # ensemble: this many networks trained side by side (vmap), their predictions
-                                   # averaged at every autoregressive step of a rollout
+    members: int = 1               # ensemble: this many networks trained side by side (vmap); a rollout is the
+                                   # mean of the members' whole rollouts
 
 
 @dataclasses.dataclass(frozen=True)

@@ -298,7 +298,9 @@ def rollout(params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, num_s
     """Inference autoregression with ``lax.scan`` over ``num_steps`` steps of l frames.
 
     Once both characters' mean joint distance to their keyposes is below ``threshold`` (model units) after
-    a step, the sample is done: later steps repeat its last frame.  Inputs as :func:`generator_step`;
+    a step, the sample is done: later frames repeat its last frame (:func:`stop_at_keypose`, on the finished
+    frames; a step's prediction depends only on earlier steps, so this equals stopping inside the scan).
+    Inputs as :func:`generator_step`;
     ``gap`` (scalar or (B,)): frames to generate before the keyframe, the time-to-arrival input of
     ``model.tta`` / ``model.residual`` models (the keyframe is frame ``gap + 1`` after the window).  Without
     it: ``num_steps * l`` when ``threshold < 0`` (a fixed-length rollout), else :func:`guess_gap`.
@@ -307,42 +309,41 @@ def rollout(params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, num_s
     ``num_steps * l`` when the threshold was never reached).
 
     With ``model.members`` M > 1 (parameters with a leading member axis, :func:`init_params`) each member
-    rolls out the whole gap on its own (``vmap``, one key each, no early stop), the frames are averaged over
-    the members and the stop rule is applied to the mean (:func:`stop_at_keypose`).  Averaging every step's
-    prediction instead, and feeding the mean back, scored worse on the validation take (4.465 against 4.398,
-    docs/results/interaction.md).
+    rolls out the whole gap on its own (``vmap``, one key each), the frames are averaged over the members and
+    the stop rule is applied to the mean.  Averaging every step's prediction instead, and feeding the mean
+    back, scored worse on the validation take (4.465 against 4.400, docs/results/interaction.md).
     """
     threshold = cfg.model.stop_threshold if threshold is None else threshold
     timed = cfg.model.tta or cfg.model.residual
     if timed and gap is None:
         gap = num_steps * cfg.data.n_pred if threshold < 0 else guess_gap(window[:, :, -1], keypose, cfg)
-    one = lambda p, k, thr: _rollout_one(p, window, keypose, rel_R, rel_t, k, cfg, forward_axis, num_steps,  # noqa
-                                         use_refiner, thr, gap, latent_scale)
+    one = lambda p, k: _rollout_one(p, window, keypose, rel_R, rel_t, k, cfg, forward_axis, num_steps,  # noqa
+                                    use_refiner, gap, latent_scale)
     M = cfg.model.members
-    if M == 1:
-        return one(params, key, threshold)
-    frames, _ = jax.vmap(lambda p, k: one(p, k, -1.0))(params, jax.random.split(key, M))
-    return stop_at_keypose(jnp.mean(frames, axis=0), keypose, threshold, cfg.data.n_pred)
+    frames = one(params, key) if M == 1 else \
+        jnp.mean(jax.vmap(one)(params, jax.random.split(key, M)), axis=0)
+    return stop_at_keypose(frames, keypose, threshold, cfg.data.n_pred)
 
 
 def stop_at_keypose(frames, keypose, threshold, l: int):
     """The stop rule on finished rollouts: frames (B, 2, S*l, J, 9), keypose (B, 2, J, 9).  After the first
     l-frame step whose last frame has both characters within ``threshold`` of their keyposes, every frame
-    repeats that frame.  -> (frames, length (B,) int32), as :func:`rollout` (the same as stopping inside it)."""
-    B, _, F = frames.shape[:3]
+    repeats that frame.  -> (frames, length (B,) int32 = frames generated before stopping, S*l when never)."""
+    F = frames.shape[2]
     ends = frames[:, :, l - 1::l]                                           # (B, 2, S, J, 9)
     reached = jnp.all(keypose_distance(jnp.moveaxis(ends, 2, 0), keypose[None]) < threshold, axis=2)   # (S, B)
     S = F // l
     first = jnp.where(reached.any(0), jnp.argmax(reached, axis=0), S)       # (B,) step index, S = never
     length = jnp.minimum(first + 1, S) * l
-    hold = jnp.take_along_axis(frames, jnp.clip(length - 1, 0, F - 1)[:, None, None, None, None], axis=2)
+    hold = jnp.take_along_axis(frames, (length - 1)[:, None, None, None, None], axis=2)       # (B, 2, 1, J, 9)
     after = jnp.arange(F)[None] >= length[:, None]                          # (B, F)
     return jnp.where(after[:, None, :, None, None], hold, frames), length.astype(jnp.int32)
 
 
 def _rollout_one(params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, num_steps: int, use_refiner,
-                 threshold, gap, latent_scale):
-    """:func:`rollout` of one network (``gap`` already resolved)."""
+                 gap, latent_scale):
+    """The ``num_steps * l`` frames (B, 2, num_steps * l, J, 9) one network rolls out (``gap`` already resolved;
+    no stop rule: :func:`rollout` applies it to the finished frames)."""
     use_refiner = cfg.model.refiner if use_refiner is None else use_refiner
     latent_scale = cfg.model.latent_scale if latent_scale is None else latent_scale
     l = cfg.data.n_pred
@@ -350,26 +351,19 @@ def _rollout_one(params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, 
     timed = cfg.model.tta or cfg.model.residual
     tta0 = jnp.broadcast_to(jnp.asarray(gap, jnp.float32), (B,)) + 1.0 if timed else None
 
-    def step(carry, inp):
-        win, done, length = carry
+    def step(win, inp):
         k, p = inp
         tta = None if tta0 is None else tta0 - p * l
-        out = generator_step(params["gen"], win, keypose, rel_R, rel_t, k, cfg, forward_axis, tta, latent_scale)
-        pred = out["pred"]
+        pred = generator_step(params["gen"], win, keypose, rel_R, rel_t, k, cfg, forward_axis, tta,
+                              latent_scale)["pred"]
         if use_refiner:
             pred = refine(params["ref"], pred, cfg)
-        hold = jnp.repeat(win[:, :, -1:], l, axis=2)
-        pred = jnp.where(done[:, None, None, None, None], hold, pred)
-        length = length + jnp.where(done, 0, l)
-        reached = jnp.all(keypose_distance(pred[:, :, -1], keypose) < threshold, axis=1)
-        win = jnp.concatenate([win[:, :, l:], pred], axis=2)
-        return (win, done | reached, length), pred
+        return jnp.concatenate([win[:, :, l:], pred], axis=2), pred
 
-    init = (window, jnp.zeros((B,), bool), jnp.zeros((B,), jnp.int32))
     steps = (jax.random.split(key, num_steps), jnp.arange(num_steps, dtype=jnp.float32))
-    (_, _, length), preds = jax.lax.scan(step, init, steps)
+    _, preds = jax.lax.scan(step, window, steps)
     frames = jnp.moveaxis(preds, 0, 2)                                      # (B, 2, S, l, J, 9)
-    return frames.reshape(frames.shape[:2] + (num_steps * l,) + frames.shape[4:]), length
+    return frames.reshape(frames.shape[:2] + (num_steps * l,) + frames.shape[4:])
 
 
 def sample_rollouts(params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, num_steps: int,
