@@ -35,3 +35,18 @@ def cli_runs(tmp_path_factory) -> dict:
         train_model(model, "tiny", [f"train.num_steps={steps}", "train.ckpt_every=2", "train.log_every=2"],
                     "embedded", runs[model], progress=False, log=None)
     return runs
+
+
+@pytest.fixture(scope="session")
+def pair_train():
+    """The training split of constructed pairs of the shipped CMU clips (interaction tests)."""
+    from inbetween_jax.models.interaction import data as idata
+    return idata.split_pairs(idata.load_pairs("embedded"), "train")
+
+
+@pytest.fixture(scope="session")
+def pair_windows():
+    """Evaluation windows of the test split of those pairs: 20 context frames, a 30-frame gap and the keyframe
+    (6 windows)."""
+    from inbetween_jax.models.interaction import data as idata
+    return idata.eval_windows(idata.split_pairs(idata.load_pairs("embedded"), "test"), 20, 30, 10, max_windows=6)

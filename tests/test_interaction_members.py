@@ -8,7 +8,6 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from inbetween_jax.models.interaction import data as idata
 from inbetween_jax.models.interaction import model as ia
 from inbetween_jax.models.interaction.bench import member
 from inbetween_jax.models.interaction.config import get_config
@@ -23,14 +22,8 @@ GAP = 30
 
 
 @pytest.fixture(scope="module")
-def windows():
-    """20 context frames, a 30-frame gap and the keyframe, from the test pairs."""
-    return idata.eval_windows(idata.split_pairs(idata.load_pairs("embedded"), "test"), 20, GAP, 10, max_windows=6)
-
-
-@pytest.fixture(scope="module")
-def forward_axis():
-    return idata.split_pairs(idata.load_pairs("embedded"), "train")[0].forward_axis.astype(np.float32)
+def forward_axis(pair_train):
+    return pair_train[0].forward_axis.astype(np.float32)
 
 
 def _moved(params, key, scale=0.05):
@@ -72,12 +65,12 @@ def _stopped_reference(full, kp, thr, l=10):
     return out, lengths
 
 
-def test_stop_rule_holds_the_first_arriving_frame(windows, forward_axis):
+def test_stop_rule_holds_the_first_arriving_frame(pair_windows, forward_axis):
     """The rollout stops after the first step whose last frame has both characters within the threshold, and
     repeats that frame (checked against a numpy re-derivation, at thresholds where windows stop at different
     steps or never)."""
     params = _moved(ia.init_params(jax.random.key(0), TIMED, 21), jax.random.key(5))
-    w, kp, R, t = _args(windows)
+    w, kp, R, t = _args(pair_windows)
     roll = lambda thr: ia.rollout(params, w, kp, R, t, jax.random.key(2), TIMED, forward_axis, 6,  # noqa: E731
                                   threshold=thr, gap=GAP)
     full, full_len = roll(-1.0)
@@ -95,9 +88,9 @@ def test_stop_rule_holds_the_first_arriving_frame(windows, forward_axis):
     assert len(lengths) >= 3                      # stops at different steps, and never (60) at threshold 0
 
 
-def test_ensemble_rollout_is_the_mean_of_the_members_rollouts(windows, forward_axis):
+def test_ensemble_rollout_is_the_mean_of_the_members_rollouts(pair_windows, forward_axis):
     params = _moved(ia.init_params(jax.random.key(0), PAIR, 21), jax.random.key(6))
-    w, kp, R, t = _args(windows)
+    w, kp, R, t = _args(pair_windows)
     key = jax.random.key(3)
     keys = jax.random.split(key, 2)
     each = [ia.rollout(jax.tree.map(lambda a: a[m], params), w, kp, R, t, keys[m], TIMED, forward_axis, 4,

@@ -23,17 +23,6 @@ TINY = get_config("tiny")
 TIMED = apply_overrides(TINY, ["model.residual=true", "model.tta=true", "model.key_offsets=true"])
 
 
-@pytest.fixture(scope="module")
-def train_pairs():
-    return idata.split_pairs(idata.load_pairs("embedded"), "train")
-
-
-@pytest.fixture(scope="module")
-def windows():
-    """20 context frames, a 30-frame gap and the keyframe, from the test pairs."""
-    return idata.eval_windows(idata.split_pairs(idata.load_pairs("embedded"), "test"), 20, 30, 10, max_windows=6)
-
-
 def test_presets_switches_off_in_paper_and_cpu_on_in_improved():
     assert DEFAULT_PRESET == "improved"
     for name in ("paper", "cpu"):
@@ -60,21 +49,21 @@ def test_presets_switches_off_in_paper_and_cpu_on_in_improved():
     assert all(get_config(n).model.members == 1 for n in PRESETS)
 
 
-def test_default_batch_is_one_sample_batch_call(train_pairs):
+def test_default_batch_is_one_sample_batch_call(pair_train):
     """Switches off: the batch is exactly the paper's sampling (same random stream, same arrays)."""
     d = TINY.data
-    got = training_batch(train_pairs, np.random.default_rng(3), TINY)
-    ref = idata.sample_batch(train_pairs, np.random.default_rng(3), TINY.train.batch_size,
+    got = training_batch(pair_train, np.random.default_rng(3), TINY)
+    ref = idata.sample_batch(pair_train, np.random.default_rng(3), TINY.train.batch_size,
                              d.n_input + d.ar_steps * d.n_pred, (d.key_min, d.key_max), d.mirror, d.pos_scale)
     assert set(got) == set(BATCH_KEYS)
     for k in BATCH_KEYS:
         np.testing.assert_array_equal(got[k], ref[k])
 
 
-def test_key_inside_holds_the_keypose_after_the_keyframe(train_pairs):
+def test_key_inside_holds_the_keypose_after_the_keyframe(pair_train):
     cfg = apply_overrides(TINY, ["data.key_inside=0.5", "train.batch_size=8"])
     T, N = cfg.data.n_input, cfg.data.ar_steps * cfg.data.n_pred
-    b = training_batch(train_pairs, np.random.default_rng(0), cfg)
+    b = training_batch(pair_train, np.random.default_rng(0), cfg)
     tta = b["tta"].astype(int)
     assert np.all(tta[:4] > N) and np.all((tta[4:] >= 2) & (tta[4:] <= N))       # 4 outside, 4 inside
     for i in range(4, 8):
@@ -83,42 +72,42 @@ def test_key_inside_holds_the_keypose_after_the_keyframe(train_pairs):
         np.testing.assert_array_equal(held, np.broadcast_to(b["keypose"][i][:, None], held.shape))
         assert np.abs(b["x"][i, :, k - 1] - b["keypose"][i]).max() > 1e-3           # real motion before it
     # without key_inside but timed: every keyframe stays where the paper puts it (beyond the predicted frames)
-    b = training_batch(train_pairs, np.random.default_rng(0), TIMED)
+    b = training_batch(pair_train, np.random.default_rng(0), TIMED)
     assert np.all(b["tta"] > N) and np.all(b["tta"] <= cfg.data.key_max - T + 1)
 
 
-def _inputs(windows, cfg, gap):
-    J = windows["x"].shape[3]
+def _inputs(pair_windows, cfg, gap):
+    J = pair_windows["x"].shape[3]
     params = ia.init_params(jax.random.key(0), cfg, J)
-    w = jnp.asarray(windows["x"][:, :, :20])
+    w = jnp.asarray(pair_windows["x"][:, :, :20])
     tta = jnp.full((w.shape[0],), gap + 1.0)
     return params, w, tta
 
 
-def test_residual_untrained_model_returns_the_lerp_exactly(windows, train_pairs):
-    fa = train_pairs[0].forward_axis.astype(np.float32)
+def test_residual_untrained_model_returns_the_lerp_exactly(pair_windows, pair_train):
+    fa = pair_train[0].forward_axis.astype(np.float32)
     for cfg, tta_given in ((TIMED, True), (apply_overrides(TINY, ["model.residual=true"]), False)):
-        params, w, tta = _inputs(windows, cfg, 30)
-        out = ia.generator_step(params["gen"], w, windows["keypose"], windows["rel_R"], windows["rel_t"],
+        params, w, tta = _inputs(pair_windows, cfg, 30)
+        out = ia.generator_step(params["gen"], w, pair_windows["keypose"], pair_windows["rel_R"], pair_windows["rel_t"],
                                 jax.random.key(1), cfg, fa, tta if tta_given else None)
         reach = tta if tta_given else jnp.full_like(tta, cfg.model.lerp_frames)
-        lerp = ia.lerp_to_keypose(w[:, :, -1], jnp.asarray(windows["keypose"]), reach, cfg.data.n_pred)
+        lerp = ia.lerp_to_keypose(w[:, :, -1], jnp.asarray(pair_windows["keypose"]), reach, cfg.data.n_pred)
         np.testing.assert_array_equal(np.asarray(out["pred"]), np.asarray(lerp))
         np.testing.assert_array_equal(np.asarray(out["coarse"]), np.asarray(lerp))
         assert np.abs(np.asarray(lerp[:, :, -1] - w[:, :, -1])).max() > 1e-2    # it does move
     # the paper's head is not a lerp
-    params, w, _ = _inputs(windows, TINY, 30)
-    out = ia.generator_step(params["gen"], w, windows["keypose"], windows["rel_R"], windows["rel_t"],
+    params, w, _ = _inputs(pair_windows, TINY, 30)
+    out = ia.generator_step(params["gen"], w, pair_windows["keypose"], pair_windows["rel_R"], pair_windows["rel_t"],
                             jax.random.key(1), TINY, fa)
-    lerp = ia.lerp_to_keypose(w[:, :, -1], jnp.asarray(windows["keypose"]), jnp.full((w.shape[0],), 31.0), 10)
+    lerp = ia.lerp_to_keypose(w[:, :, -1], jnp.asarray(pair_windows["keypose"]), jnp.full((w.shape[0],), 31.0), 10)
     assert not np.allclose(np.asarray(out["pred"]), np.asarray(lerp), atol=1e-3)
 
 
-def test_untrained_timed_model_arrives_and_honours_the_gap(windows, train_pairs):
+def test_untrained_timed_model_arrives_and_honours_the_gap(pair_windows, pair_train):
     """The stop rule fires for the residual / tta model within 2x the gap; the gap changes the motion."""
-    fa = train_pairs[0].forward_axis.astype(np.float32)
-    params, w, _ = _inputs(windows, TIMED, 30)
-    kp, R, t = windows["keypose"], windows["rel_R"], windows["rel_t"]
+    fa = pair_train[0].forward_axis.astype(np.float32)
+    params, w, _ = _inputs(pair_windows, TIMED, 30)
+    kp, R, t = pair_windows["keypose"], pair_windows["rel_R"], pair_windows["rel_t"]
     run = jax.jit(lambda g: ia.rollout(params, w, kp, R, t, jax.random.key(2), TIMED, fa, 6, gap=g))
     frames, length = run(30)
     assert np.all(np.asarray(length) <= 30)                           # at the latest after the gap (2x allowed)
@@ -130,25 +119,25 @@ def test_untrained_timed_model_arrives_and_honours_the_gap(windows, train_pairs)
     assert np.abs(np.asarray(late[:, :, 9] - frames[:, :, 9])).max() > 1e-2     # slower when given more time
 
 
-def test_key_offsets_are_an_input(windows, train_pairs):
-    fa = train_pairs[0].forward_axis.astype(np.float32)
+def test_key_offsets_are_an_input(pair_windows, pair_train):
+    fa = pair_train[0].forward_axis.astype(np.float32)
     cfg = apply_overrides(TINY, ["model.key_offsets=true"])
-    params, w, _ = _inputs(windows, cfg, 30)
+    params, w, _ = _inputs(pair_windows, cfg, 30)
     k = params["gen"]["enc"]["proj"]["kernel"]
     base = ia.init_params(jax.random.key(0), TINY, w.shape[3])["gen"]["enc"]["proj"]["kernel"]
     assert k.shape[0] == base.shape[0] + 9 and ia.extra_features(cfg) == 18
-    step = lambda p: ia.generator_step(p["gen"], w, windows["keypose"], windows["rel_R"], windows["rel_t"],  # noqa
-                                       jax.random.key(1), cfg, fa)["pred"]
+    kp, R, t = pair_windows["keypose"], pair_windows["rel_R"], pair_windows["rel_t"]
+    step = lambda p: ia.generator_step(p["gen"], w, kp, R, t, jax.random.key(1), cfg, fa)["pred"]  # noqa: E731
     zeroed = jax.tree.map(lambda a: a, params)
     zeroed["gen"]["enc"]["proj"]["kernel"] = k.at[-9:].set(0.0)                  # the offset rows
     assert np.abs(np.asarray(step(params) - step(zeroed))).max() > 1e-6
 
 
-def test_tta_input_changes_the_prediction_and_is_required(windows, train_pairs):
-    fa = train_pairs[0].forward_axis.astype(np.float32)
+def test_tta_input_changes_the_prediction_and_is_required(pair_windows, pair_train):
+    fa = pair_train[0].forward_axis.astype(np.float32)
     cfg = apply_overrides(TINY, ["model.tta=true"])
-    params, w, tta = _inputs(windows, cfg, 30)
-    args = (w, windows["keypose"], windows["rel_R"], windows["rel_t"], jax.random.key(1), cfg, fa)
+    params, w, tta = _inputs(pair_windows, cfg, 30)
+    args = (w, pair_windows["keypose"], pair_windows["rel_R"], pair_windows["rel_t"], jax.random.key(1), cfg, fa)
     a = ia.generator_step(params["gen"], *args, tta)["pred"]
     b = ia.generator_step(params["gen"], *args, tta - 25.0)["pred"]
     assert np.abs(np.asarray(a - b)).max() > 1e-6
@@ -156,20 +145,20 @@ def test_tta_input_changes_the_prediction_and_is_required(windows, train_pairs):
         ia.generator_step(params["gen"], *args)
 
 
-def test_latent_scale_zero_is_deterministic(windows, train_pairs):
+def test_latent_scale_zero_is_deterministic(pair_windows, pair_train):
     """``model.latent_scale``: 1 samples z around the encoder's mean (different keys, different rollouts); 0 uses
     the mean (every key gives the same rollout)."""
-    fa = jnp.asarray(train_pairs[0].forward_axis, jnp.float32)
-    params, w, _ = _inputs(windows, TINY, 30)
+    fa = jnp.asarray(pair_train[0].forward_axis, jnp.float32)
+    params, w, _ = _inputs(pair_windows, TINY, 30)
     params["gen"]["film"] = jax.tree.map(lambda a: a + 0.3, params["gen"]["film"])  # z must reach the output
-    out = {s: ia.sample_rollouts(params, w, windows["keypose"], windows["rel_R"], windows["rel_t"],
+    out = {s: ia.sample_rollouts(params, w, pair_windows["keypose"], pair_windows["rel_R"], pair_windows["rel_t"],
                                  jax.random.key(2), TINY, fa, 2, 3, threshold=-1.0, latent_scale=s)[0]
            for s in (0.0, 1.0)}
     assert np.abs(np.asarray(out[1.0][0] - out[1.0][1])).max() > 1e-5
     np.testing.assert_allclose(np.asarray(out[0.0][0]), np.asarray(out[0.0][2]), atol=1e-6)
 
 
-def test_adversarial_weight_warms_up_late(train_pairs):
+def test_adversarial_weight_warms_up_late(pair_train):
     np.testing.assert_allclose(float(adversarial_weight(jnp.float32(0.0), TINY)), TINY.loss.w_adv, rtol=1e-6)
     cfg = apply_overrides(TINY, ["loss.adv_start=100", "loss.adv_ramp=50", "data.ss_max=0.0"])
     w = [float(adversarial_weight(jnp.float32(s), cfg)) for s in (0, 99, 100, 125, 150, 1000)]
@@ -178,24 +167,24 @@ def test_adversarial_weight_warms_up_late(train_pairs):
     np.testing.assert_allclose([float(adversarial_weight(jnp.float32(s), off)) for s in (99, 100)],
                                [0.0, off.loss.w_adv], rtol=1e-6)
     # in the objective: the total changes by exactly w_adv * adv between before and after the warm-up
-    b = training_batch(train_pairs, np.random.default_rng(1), cfg)
+    b = training_batch(pair_train, np.random.default_rng(1), cfg)
     params = ia.init_params(jax.random.key(0), cfg, b["x"].shape[3])
-    fa = train_pairs[0].forward_axis.astype(np.float32)
+    fa = pair_train[0].forward_axis.astype(np.float32)
     (t0, (m0, _)), (t1, (m1, _)) = [generator_objective(params, dict(b, step=jnp.float32(s)), jax.random.key(0),
                                                         cfg, fa) for s in (0, 500)]
     assert float(m0["adv"]) > 0 and float(m0["w_adv"]) == 0.0
     np.testing.assert_allclose(float(t1 - t0), cfg.loss.w_adv * float(m1["adv"]), rtol=1e-3)
 
 
-def test_full_scheduled_sampling_and_more_steps(train_pairs):
+def test_full_scheduled_sampling_and_more_steps(pair_train):
     """ss_max = 1 ends in full feedback: the predictions no longer depend on the ground truth after the context."""
     cfg = apply_overrides(TINY, ["data.ar_steps=5", "model.pjd_frames=50", "data.ss_max=1.0",
                                  "data.key_min=71", "data.key_max=80"])
     assert float(scheduled_sampling_prob(jnp.float32(10 ** 6), cfg)) == 1.0
-    b = training_batch(train_pairs, np.random.default_rng(2), cfg)
+    b = training_batch(pair_train, np.random.default_rng(2), cfg)
     assert b["x"].shape[2] == 20 + 50
     params = ia.init_params(jax.random.key(0), cfg, b["x"].shape[3])
-    fa = train_pairs[0].forward_axis.astype(np.float32)
+    fa = pair_train[0].forward_axis.astype(np.float32)
     run = lambda x, p: ia.ar_predict(params["gen"], dict(b, x=x), jax.random.key(4), cfg, fa, p)[0]  # noqa
     x2 = b["x"].copy()
     x2[:, :, 20:] += 0.5
@@ -205,13 +194,13 @@ def test_full_scheduled_sampling_and_more_steps(train_pairs):
     assert not np.allclose(np.asarray(run(b["x"], 0.0)), np.asarray(run(x2, 0.0)))
 
 
-def test_infill_honours_frames_with_tta(windows, train_pairs):
+def test_infill_honours_frames_with_tta(pair_windows, pair_train):
     """``--frames N``: an untrained residual / tta model is at the keypose after N frames, for two N."""
-    fa = np.asarray(train_pairs[0].forward_axis, np.float64)
-    J = windows["x"].shape[3]
+    fa = np.asarray(pair_train[0].forward_axis, np.float64)
+    J = pair_windows["x"].shape[3]
     cfg = dataclasses.replace(TIMED, model=dataclasses.replace(TIMED.model, refiner=False))
     trained = Trained(cfg, ia.init_params(jax.random.key(0), cfg, J), J, fa, None, 0, "")
-    pair = train_pairs[3]
+    pair = pair_train[3]
     context, key = pair.feats[:, 10:30].astype(np.float64), pair.feats[:, 60].astype(np.float64)
     for n in (12, 25):
         out = infill_features(trained, context, key, n, 1)
@@ -221,31 +210,31 @@ def test_infill_honours_frames_with_tta(windows, train_pairs):
         assert gap_cm < 1.5 * step_cm, (n, gap_cm, step_cm)                      # one lerp step from the key
 
 
-def test_residual_refiner_starts_as_identity(windows):
+def test_residual_refiner_starts_as_identity(pair_windows):
     """With model.residual the refiner's output layer starts at zero (the untrained rollout is the lerp, refiner
     on); the paper's refiner is not the identity."""
-    lerp_like = jnp.asarray(windows["x"][:, :, 20:30])
+    lerp_like = jnp.asarray(pair_windows["x"][:, :, 20:30])
     for cfg, identity in ((TIMED, True), (TINY, False)):
         params = ia.init_params(jax.random.key(0), cfg, lerp_like.shape[3])
         out = np.asarray(ia.refine(params["ref"], lerp_like, cfg))
         assert np.allclose(out, np.asarray(lerp_like), atol=1e-4) == identity
 
 
-def test_bench_model_method_is_told_the_true_or_guessed_gap(windows, train_pairs):
+def test_bench_model_method_is_told_the_true_or_guessed_gap(pair_windows, pair_train):
     """The bench's model rows tell a timed model the window's own gap (30 here) even when the rollout is longer
     (the stop-rule rollout runs 2x the gap), or the guessed-length baseline's guess."""
     from inbetween_jax.evaluation.interaction import guess_gap_length
     from inbetween_jax.models.interaction.bench import _model_method
-    fa = np.asarray(train_pairs[0].forward_axis, np.float64)
-    J = windows["x"].shape[3]
+    fa = np.asarray(pair_train[0].forward_axis, np.float64)
+    J = pair_windows["x"].shape[3]
     trained = Trained(TIMED, ia.init_params(jax.random.key(0), TIMED, J), J, fa, None, 0, "")
-    kp = np.asarray(windows["keypose"])
-    long = _model_method(trained)(windows, 6, 1, jax.random.key(0))[0]        # 60 frames for a 30-frame gap
+    kp = np.asarray(pair_windows["keypose"])
+    long = _model_method(trained)(pair_windows, 6, 1, jax.random.key(0))[0]        # 60 frames for a 30-frame gap
     d = np.asarray(ia.keypose_distance(jnp.asarray(long[:, :, 30]), kp)).max(1)
     assert long.shape[2] == 60 and np.all(d < 1e-3)                           # frame 31 is the keyframe
-    guess = guess_gap_length(windows)
+    guess = guess_gap_length(pair_windows)
     assert np.any(guess != 30)
-    guessed = _model_method(trained, gap="guess")(windows, 6, 1, jax.random.key(0))[0]
+    guessed = _model_method(trained, gap="guess")(pair_windows, 6, 1, jax.random.key(0))[0]
     for i in np.flatnonzero(guess < 59):
         di = np.asarray(ia.keypose_distance(jnp.asarray(guessed[i:i + 1, :, guess[i]]), kp[i:i + 1])).max()
         assert di < 1e-3

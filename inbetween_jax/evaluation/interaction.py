@@ -203,13 +203,14 @@ def hold_method(b, steps, samples, key, n_pred: int = 10):
     return np.repeat(np.repeat(last, steps * n_pred, 2)[None], samples, 0)
 
 
-def guess_gap_length(b, lo: int = 5, hi: int = 200) -> np.ndarray:
+def guess_gap_length(b, lo: int = 5, hi: int = 200, n_input: int = N_INPUT) -> np.ndarray:
     """Gap length guessed without the true one: per character, the mean joint distance from the last context
     frame to the keypose divided by the mean joint speed over the last 10 context frames (metres and metres per
-    frame, both in the keyframe space); the larger of the two characters, rounded, clipped to [lo, hi].  -> (B,) int."""
+    frame, both in the keyframe space); the larger of the two characters, rounded, clipped to [lo, hi].
+    ``b["x"]`` (B, 2, F, J, >=3) holds ``n_input`` context frames first.  -> (B,) int."""
     x = np.asarray(b["x"], np.float64)[..., :3]
-    dist = np.linalg.norm(np.asarray(b["keypose"], np.float64)[..., :3] - x[:, :, N_INPUT - 1], axis=-1).mean(-1)
-    speed = np.linalg.norm(np.diff(x[:, :, N_INPUT - 11:N_INPUT], axis=2), axis=-1).mean((2, 3))
+    dist = np.linalg.norm(np.asarray(b["keypose"], np.float64)[..., :3] - x[:, :, n_input - 1], axis=-1).mean(-1)
+    speed = np.linalg.norm(np.diff(x[:, :, n_input - 11:n_input], axis=2), axis=-1).mean((2, 3))
     return np.clip(np.round((dist / np.maximum(speed, 1e-4)).max(1)), lo, hi).astype(int)
 
 

@@ -57,7 +57,8 @@ def _model_method(trained, use_refiner=None, gap="true", latent_scale=None):
     ``gap`` is what a timing-conditioned model (``model.tta`` / ``model.residual``) is told about the gap:
     ``"true"`` -- the window's own transition length L (whatever the rollout length, so the stop-rule rollout of
     2 L frames still aims at frame L + 1); ``"guess"`` -- :func:`~inbetween_jax.evaluation.interaction.guess_gap_length`,
-    the same guess the guessed-length interpolation baseline uses."""
+    the same guess the guessed-length interpolation baseline uses (flagged models, ``data.tta_guess``, are
+    told that it is a guess)."""
     import jax
     from inbetween_jax.evaluation.interaction import N_INPUT, guess_gap_length
     from inbetween_jax.models.interaction.model import sample_rollouts
@@ -70,7 +71,7 @@ def _model_method(trained, use_refiner=None, gap="true", latent_scale=None):
         if (steps, samples) not in cache:
             cache[(steps, samples)] = jax.jit(lambda p, w, kp, R, t, g, k: sample_rollouts(
                 p, w, kp, R, t, k, cfg, fa, steps, samples, threshold=-1.0, use_refiner=use_refiner, gap=g,
-                latent_scale=latent_scale)[0])
+                latent_scale=latent_scale, gap_known=gap == "true")[0])
         B, L = b["x"].shape[0], b["x"].shape[2] - N_INPUT - 1
         g = np.full(B, L, np.float32) if gap == "true" else guess_gap_length(b).astype(np.float32)
         return np.asarray(cache[(steps, samples)](trained.params, b["x"][:, :, :N_INPUT], b["keypose"], b["rel_R"],

@@ -58,7 +58,11 @@ sixth round of docs/results/interaction.md: no gain on the validation take): ``d
 training takes played faster / slower, e.g. ``data.tempo=0.8,0.9,1.1,1.25``) and ``data.reverse``
 (time-reversed copies).  Ensembles: ``model.members=M`` (1 in every preset) trains M networks side by side
 in one run (``vmap``; each its own initialisation, batches and keys, so M times the compute) and selects and
-ships them as one model whose rollout is the mean of the members' rollouts (:func:`.model.rollout`).  The
+ships them as one model whose rollout is the mean of the members' rollouts (:func:`.model.rollout`).  A gap
+told as a guess: ``data.tta_guess=p`` (0 in every preset; needs ``model.tta``) tells a fraction p of every batch
+the evaluation's distance / speed guess of the gap instead of the true one, with a 4th time-to-arrival input
+saying which (:func:`.model.tta_flagged`); rollouts told a guessed gap (the bench's "gap guessed" rows, or a
+rollout that guesses its own) pass ``gap_known=False``, so the model can learn how wrong the guess tends to be.  The
 autoregressive training length (``data.ar_steps``) and the scheduled-sampling curriculum
 (``data.ss_ramp_steps``, ``data.ss_max``) are ``data`` fields: they decide which frames a training sample holds
 and how often predictions are fed back as inputs.
@@ -92,6 +96,9 @@ class DataConfig:
                                    # (n_input + 1 .. n_input + P*l - 1); frames after it are the held keypose
     tempo: tuple = ()              # real pairs: extra copies of every training take played at these speeds
     reverse: bool = False          # extra time-reversed copies of every training pair (after ``tempo``)
+    tta_guess: float = 0.0         # with model.tta: this fraction of each batch is told the guessed gap
+                                   # (distance / speed) instead of the true one, and a 4th time-to-arrival
+                                   # feature says which (1 true, 0 guessed); inference passes gap_known
 
 
 @dataclasses.dataclass(frozen=True)

@@ -31,8 +31,8 @@ from inbetween_jax.models.interaction.layers import (ConvGCN, Discriminator, FiL
 
 __all__ = ["GROUPS", "Generator", "pjd_channels", "graphdefs", "init_params", "cross_space", "cross_space_inverse",
            "extra_features", "tta_features", "lerp_to_keypose", "generator_step", "refine", "pae_encode",
-           "pae_reconstruct", "disc_logits", "keypose_distance", "ar_predict", "guess_gap", "rollout",
-           "stop_at_keypose", "sample_rollouts"]
+           "pae_reconstruct", "disc_logits", "keypose_distance", "ar_predict", "guess_gap", "speed_guess_gap",
+           "tta_flagged", "rollout", "stop_at_keypose", "sample_rollouts"]
 
 GROUPS = ("gen", "ref", "pae", "disc")
 
@@ -56,15 +56,23 @@ TTA_FEATURES = 3
 
 
 def extra_features(cfg) -> int:
-    """Per-joint extra encoder input width: keypose (9) [+ offsets to it (9)] [+ time to arrival (3)]."""
+    """Per-joint extra encoder input width: keypose (9) [+ offsets to it (9)] [+ time to arrival (3)
+    [+ whether it is the true one (1), with ``data.tta_guess``]]."""
     m = cfg.model
-    return 9 + 9 * m.key_offsets + TTA_FEATURES * m.tta
+    return 9 + 9 * m.key_offsets + (TTA_FEATURES + tta_flagged(cfg)) * m.tta
 
 
-def tta_features(tta, n_pred: int):
-    """Time to arrival (B,) frames -> (B, 3): tta / 30 (clipped at 4), exp(-tta / 10), keyframe within this step."""
+def tta_flagged(cfg) -> bool:
+    """Whether the time-to-arrival input carries a known / guessed flag (``data.tta_guess`` > 0)."""
+    return bool(cfg.model.tta and cfg.data.tta_guess > 0)
+
+
+def tta_features(tta, n_pred: int, known=None):
+    """Time to arrival (B,) frames -> (B, 3): tta / 30 (clipped at 4), exp(-tta / 10), keyframe within this step;
+    with ``known`` (B,) (1: the true time, 0: a guess) appended as a 4th feature -> (B, 4)."""
     t = jnp.maximum(tta, 0.0)
-    return jnp.stack([jnp.minimum(t / 30.0, 4.0), jnp.exp(-t / 10.0), (t <= n_pred).astype(t.dtype)], -1)
+    feats = [jnp.minimum(t / 30.0, 4.0), jnp.exp(-t / 10.0), (t <= n_pred).astype(t.dtype)]
+    return jnp.stack(feats + ([] if known is None else [known.astype(t.dtype)]), -1)
 
 
 def lerp_to_keypose(last, keypose, tta, n: int):
@@ -167,13 +175,15 @@ def cross_space_inverse(rel, other, rel_R, rel_t, forward_axis):
     return apply_space(in_other, Rt[:, :, None], -jnp.einsum("...ij,...j->...i", Rt, rel_t)[:, :, None])
 
 
-def generator_step(gen_params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, tta=None, latent_scale=1.0):
+def generator_step(gen_params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, tta=None, latent_scale=1.0,
+                   tta_known=None):
     """One prediction step for both characters.
 
     gen_params: ``params["gen"]``; window (B, 2, T, J, 9), keypose (B, 2, J, 9), rel_R (B, 2, 3, 3),
     rel_t (B, 2, 3), key: PRNG key; tta (B,) frames from the window's last frame to the keyframe (used with
     ``model.tta`` / ``model.residual``; required with ``model.tta``); latent_scale: the latent's noise scale
-    (1 in training; inference uses ``model.latent_scale``).  Returns dict: pred (B, 2, l, J, 9),
+    (1 in training; inference uses ``model.latent_scale``); tta_known (B,) 1 where ``tta`` is the true time,
+    0 where it is a guess (:func:`tta_flagged` models; None: all true).  Returns dict: pred (B, 2, l, J, 9),
     coarse (B, 2, l, J, 9), mu / logvar (B, 2, J, Z) (zeros (B, 2, J, 1) when interaction modelling is off).
 
     With ``model.residual`` the window is padded with :func:`lerp_to_keypose` (``tta`` frames, else
@@ -199,8 +209,9 @@ def generator_step(gen_params, window, keypose, rel_R, rel_t, key, cfg, forward_
     if m.key_offsets:
         extra.append(keypose - last)
     if m.tta:
-        extra.append(jnp.broadcast_to(tta_features(tta.astype(window.dtype), d.n_pred)[:, None, None],
-                                      (B, 2, J, TTA_FEATURES)))
+        known = (jnp.ones((B,), window.dtype) if tta_known is None else tta_known) if tta_flagged(cfg) else None
+        feats = tta_features(tta.astype(window.dtype), d.n_pred, known)
+        extra.append(jnp.broadcast_to(feats[:, None, None], (B, 2, J, feats.shape[-1])))
     extra = jnp.concatenate(extra, -1)
     h, res = gen.enc(c_in, extra.reshape(2 * B, J, -1))
     coarse_c = c_in + res.reshape(2 * B, J, K, 9)
@@ -261,7 +272,8 @@ def ar_predict(gen_params, batch, key, cfg, forward_axis, p_pred):
 
     batch: ``x`` (B, 2, T + P*l, J, 9), ``keypose``, ``rel_R``, ``rel_t`` and, for ``model.tta`` /
     ``model.residual``, ``tta`` (B,) frames from the last input frame to the keyframe (step p gets
-    ``tta - p l``).  Returns preds / coarse (B, 2, P*l, J, 9), mu, logvar (P, B, 2, J, Z).
+    ``tta - p l``; with ``data.tta_guess`` ``tta_known`` (B,): 0 where ``tta`` is a guess).
+    Returns preds / coarse (B, 2, P*l, J, 9), mu, logvar (P, B, 2, J, Z).
     """
     d, P = cfg.data, cfg.data.ar_steps
     T, l = d.n_input, d.n_pred
@@ -275,7 +287,7 @@ def ar_predict(gen_params, batch, key, cfg, forward_axis, p_pred):
         k1, k2 = jax.random.split(k)
         tta = None if tta0 is None else tta0 - p * l
         out = generator_step(gen_params, win, batch["keypose"], batch["rel_R"], batch["rel_t"], k1, cfg,
-                             forward_axis, tta)
+                             forward_axis, tta, tta_known=batch.get("tta_known"))
         use = jax.random.bernoulli(k2, p_pred, (B, 1, 1, 1, 1))
         nxt = jnp.where(use, out["pred"], g)
         return jnp.concatenate([win[:, :, l:], nxt], axis=2), out
@@ -285,16 +297,30 @@ def ar_predict(gen_params, batch, key, cfg, forward_axis, p_pred):
     return cat(outs["pred"]), cat(outs["coarse"]), outs["mu"], outs["logvar"]
 
 
-def guess_gap(last, keypose, cfg):
-    """A gap length (B,) for timing-conditioned models when none is given: the larger of the two characters'
-    mean joint distances to their keyposes (m) / ``model.tta_speed``, clipped to [l, ``model.max_frames``]."""
+def guess_gap(window, keypose, cfg):
+    """A gap length (B,) for timing-conditioned models when none is given, from window (B, 2, T, J, 9) and
+    keypose (B, 2, J, 9): the larger of the two characters' mean joint distances to their keyposes (m) /
+    ``model.tta_speed``, clipped to [l, ``model.max_frames``].  :func:`tta_flagged` models guess as they were
+    trained to be told (:func:`speed_guess_gap`)."""
     m = cfg.model
-    dist = jnp.max(keypose_distance(last, keypose), axis=1)
+    if tta_flagged(cfg):
+        return speed_guess_gap(window, keypose)
+    dist = jnp.max(keypose_distance(window[:, :, -1], keypose), axis=1)
     return jnp.clip(jnp.ceil(dist / m.tta_speed), cfg.data.n_pred, m.max_frames)
 
 
+def speed_guess_gap(window, keypose, lo: int = 5, hi: int = 200):
+    """The evaluation's gap guess (:func:`~inbetween_jax.evaluation.interaction.guess_gap_length`) in jax:
+    per character, mean joint distance last frame -> keypose over the mean joint speed of the last 10 frames;
+    the larger of the two, rounded, clipped to [lo, hi].  window (B, 2, T >= 11, J, 9) -> (B,) float."""
+    x = window[..., :3]
+    dist = keypose_distance(x[:, :, -1], keypose)                           # (B, 2)
+    speed = jnp.mean(jnp.linalg.norm(jnp.diff(x[:, :, -11:], axis=2), axis=-1), axis=(2, 3))
+    return jnp.clip(jnp.round(jnp.max(dist / jnp.maximum(speed, 1e-4), axis=1)), lo, hi)
+
+
 def rollout(params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, num_steps: int, use_refiner=None,
-            threshold=None, gap=None, latent_scale=None):
+            threshold=None, gap=None, latent_scale=None, gap_known=True):
     """Inference autoregression with ``lax.scan`` over ``num_steps`` steps of l frames.
 
     Once both characters' mean joint distance to their keyposes is below ``threshold`` (model units) after
@@ -304,6 +330,8 @@ def rollout(params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, num_s
     ``gap`` (scalar or (B,)): frames to generate before the keyframe, the time-to-arrival input of
     ``model.tta`` / ``model.residual`` models (the keyframe is frame ``gap + 1`` after the window).  Without
     it: ``num_steps * l`` when ``threshold < 0`` (a fixed-length rollout), else :func:`guess_gap`.
+    ``gap_known``: False when ``gap`` is a guess (told to :func:`tta_flagged` models; a :func:`guess_gap` is
+    always a guess).
     ``use_refiner`` / ``latent_scale``: None = ``model.refiner`` / ``model.latent_scale``.
     Returns (frames (B, 2, num_steps * l, J, 9), length (B,) int32 = frames generated before stopping;
     ``num_steps * l`` when the threshold was never reached).
@@ -315,10 +343,12 @@ def rollout(params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, num_s
     """
     threshold = cfg.model.stop_threshold if threshold is None else threshold
     timed = cfg.model.tta or cfg.model.residual
-    if timed and gap is None:
-        gap = num_steps * cfg.data.n_pred if threshold < 0 else guess_gap(window[:, :, -1], keypose, cfg)
+    if timed and gap is None and threshold >= 0:
+        gap, gap_known = guess_gap(window, keypose, cfg), False
+    elif timed and gap is None:
+        gap = num_steps * cfg.data.n_pred
     one = lambda p, k: _rollout_one(p, window, keypose, rel_R, rel_t, k, cfg, forward_axis, num_steps,  # noqa
-                                    use_refiner, gap, latent_scale)
+                                    use_refiner, gap, latent_scale, gap_known)
     M = cfg.model.members
     frames = one(params, key) if M == 1 else \
         jnp.mean(jax.vmap(one)(params, jax.random.split(key, M)), axis=0)
@@ -341,7 +371,7 @@ def stop_at_keypose(frames, keypose, threshold, l: int):
 
 
 def _rollout_one(params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, num_steps: int, use_refiner,
-                 gap, latent_scale):
+                 gap, latent_scale, gap_known=True):
     """The ``num_steps * l`` frames (B, 2, num_steps * l, J, 9) one network rolls out (``gap`` already resolved;
     no stop rule: :func:`rollout` applies it to the finished frames)."""
     use_refiner = cfg.model.refiner if use_refiner is None else use_refiner
@@ -350,12 +380,13 @@ def _rollout_one(params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, 
     B = window.shape[0]
     timed = cfg.model.tta or cfg.model.residual
     tta0 = jnp.broadcast_to(jnp.asarray(gap, jnp.float32), (B,)) + 1.0 if timed else None
+    known = jnp.full((B,), float(gap_known), jnp.float32)
 
     def step(win, inp):
         k, p = inp
         tta = None if tta0 is None else tta0 - p * l
         pred = generator_step(params["gen"], win, keypose, rel_R, rel_t, k, cfg, forward_axis, tta,
-                              latent_scale)["pred"]
+                              latent_scale, known)["pred"]
         if use_refiner:
             pred = refine(params["ref"], pred, cfg)
         return jnp.concatenate([win[:, :, l:], pred], axis=2), pred

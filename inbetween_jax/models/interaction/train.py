@@ -22,7 +22,8 @@ import optax
 
 from inbetween_jax.models.interaction.data import PairSet, augmented_pairs, load_pair_set, sample_batch
 from inbetween_jax.models.interaction.losses import discriminator_objective, generator_objective
-from inbetween_jax.models.interaction.model import init_params
+from inbetween_jax.evaluation.interaction import guess_gap_length
+from inbetween_jax.models.interaction.model import init_params, tta_flagged
 from inbetween_jax.models.spec import Training
 from inbetween_jax.train.optim import make_optimizer
 
@@ -60,6 +61,11 @@ def training_batch(pairs, rng: np.random.Generator, cfg) -> dict:
     keypose, so the model learns to arrive and stay.  The other samples take the keyframe in
     ``data.key_min .. key_max`` as the paper does.  Without those switches this is exactly one
     :func:`.data.sample_batch` call.
+
+    With ``data.tta_guess`` (flagged models, :func:`.model.tta_flagged`) each sample's ``tta`` is, with that
+    probability, the evaluation's guess from the context frames and the keypose (guessed gap + 1,
+    :func:`~inbetween_jax.evaluation.interaction.guess_gap_length`) instead of the truth, and ``tta_known``
+    (B,) float32 is 0 there, 1 elsewhere.  The frames (the targets) are the same either way.
     """
     d, m = cfg.data, cfg.model
     T, N, B = d.n_input, d.ar_steps * d.n_pred, cfg.train.batch_size
@@ -85,7 +91,13 @@ def training_batch(pairs, rng: np.random.Generator, cfg) -> dict:
         out["tta"].append((idx - T + 1).astype(np.float32))
         for k in ("keypose", "rel_R", "rel_t"):
             out[k].append(b[k])
-    return {k: np.concatenate(v).astype(np.float32) for k, v in out.items()}
+    out = {k: np.concatenate(v).astype(np.float32) for k, v in out.items()}
+    if tta_flagged(cfg):
+        guess = guess_gap_length({"x": out["x"][:, :, :T], "keypose": out["keypose"]}, n_input=T)
+        told = rng.random(B) < d.tta_guess
+        out["tta"] = np.where(told, guess + 1, out["tta"]).astype(np.float32)
+        out["tta_known"] = (~told).astype(np.float32)
+    return out
 
 
 def init_state(cfg, num_joints: int, key) -> dict:
@@ -102,6 +114,8 @@ def make_training(cfg, data: PairSet) -> Training:
     tx = make_optimizer(cfg.train)
     d, m = cfg.data, cfg.model
     T, N = d.n_input, d.ar_steps * d.n_pred
+    if d.tta_guess > 0 and not m.tta:
+        raise ValueError("data.tta_guess needs model.tta (the guess is told through the time-to-arrival input)")
     if m.gan and m.pjd_frames != N:
         raise ValueError(f"model.pjd_frames ({m.pjd_frames}) must equal data.ar_steps * data.n_pred ({N})")
     J = data.num_joints
