@@ -343,10 +343,11 @@ def rollout(params, window, keypose, rel_R, rel_t, key, cfg, forward_axis, num_s
     """
     threshold = cfg.model.stop_threshold if threshold is None else threshold
     timed = cfg.model.tta or cfg.model.residual
-    if timed and gap is None and threshold >= 0:
-        gap, gap_known = guess_gap(window, keypose, cfg), False
-    elif timed and gap is None:
-        gap = num_steps * cfg.data.n_pred
+    if timed and gap is None:
+        if threshold < 0:
+            gap = num_steps * cfg.data.n_pred
+        else:
+            gap, gap_known = guess_gap(window, keypose, cfg), False
     one = lambda p, k: _rollout_one(p, window, keypose, rel_R, rel_t, k, cfg, forward_axis, num_steps,  # noqa
                                     use_refiner, gap, latent_scale, gap_known)
     M = cfg.model.members

@@ -20,9 +20,9 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from inbetween_jax.evaluation.interaction import guess_gap_length
 from inbetween_jax.models.interaction.data import PairSet, augmented_pairs, load_pair_set, sample_batch
 from inbetween_jax.models.interaction.losses import discriminator_objective, generator_objective
-from inbetween_jax.evaluation.interaction import guess_gap_length
 from inbetween_jax.models.interaction.model import init_params, tta_flagged
 from inbetween_jax.models.spec import Training
 from inbetween_jax.train.optim import make_optimizer
