@@ -1,0 +1,124 @@
+"""What the interaction score responds to: ground truth degraded in known ways, next to trained models.
+
+    python experiments/interaction_score_probe.py [RUN_DIR ...] [--source ../shared/data/cmu_pairs] [--steps 400]
+
+Trains the bench's interaction classifier (``--steps``; the bench's own count by default) on the training takes,
+then scores every 40-, 60- and 80-frame test window (the bench's interaction columns) of: ground truth; ground
+truth low-pass filtered in time (a Gaussian of 1, 2 and 4 frames); ground truth blended with interpolation;
+interpolation; holding the last frame; and each RUN_DIR (a training run at its validation-selected step, or a
+shipped weights folder; ensembles also as their first member alone).  Beside each score: the mean joint speed and
+its standard deviation over time (cm per frame), so a reader can see whether a model loses the score to damped
+motion.  Also prints L2P at 30 / 50 frames (every window) for the runs with latent scales 0 and 1, to show whether
+the latent carries anything.  docs/results/interaction.md quotes its output.
+"""
+import argparse
+import sys
+import time
+
+import numpy as np
+
+from inbetween_jax.errors import UserError
+from inbetween_jax.train.run import load_run
+
+LENGTHS = (40, 60, 80)
+
+
+def gaussian_smooth(x, sigma: float, axis: int):
+    """``x`` filtered along ``axis`` by a normalised Gaussian of ``sigma`` frames (edges held)."""
+    r = int(np.ceil(3 * sigma))
+    k = np.exp(-0.5 * (np.arange(-r, r + 1) / sigma) ** 2)
+    k /= k.sum()
+    x = np.moveaxis(np.asarray(x, np.float64), axis, -1)
+    pad = np.concatenate([np.repeat(x[..., :1], r, -1), x, np.repeat(x[..., -1:], r, -1)], -1)
+    out = sum(w * pad[..., i:i + x.shape[-1]] for i, w in enumerate(k))
+    return np.moveaxis(out, -1, axis).astype(np.float32)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("run_dirs", nargs="*")
+    p.add_argument("--source", default="../shared/data/cmu_pairs")
+    p.add_argument("--steps", type=int, default=None, help="classifier steps (default: the bench's)")
+    args = p.parse_args(argv)
+    import jax
+    import jax.numpy as jnp
+
+    from inbetween_jax.evaluation import interaction as proto
+    from inbetween_jax.evaluation.interaction import N_INPUT, classify_windows, to_common_space
+    from inbetween_jax.models.interaction.bench import CLASSIFIER_STEPS, _model_method, member, windows_l2p
+    from inbetween_jax.models.interaction.config import DataConfig, get_config
+    from inbetween_jax.models.interaction.data import load_pairs, split_pairs
+    from inbetween_jax.models.interaction.infer import load
+    t0, d = time.time(), DataConfig()
+    try:
+        pairs = load_pairs(args.source, d.pair_distance)
+        trained = [load(load_run(r)) for r in args.run_dirs]
+    except (UserError, ValueError, OSError) as e:   # RunError is a ValueError
+        print(f"interaction_score_probe: {e}", file=sys.stderr)
+        return 2
+    train, test = split_pairs(pairs, "train", d.split), split_pairs(pairs, "test", d.split)
+    steps = CLASSIFIER_STEPS if args.steps is None else args.steps
+    joints = trained[0].cfg.model.pjd_joints if trained else get_config().model.pjd_joints
+    gdef, params, acc = proto.train_classifier(train, pairs[0].feats.shape[2], joints, steps=steps,
+                                               pos_scale=d.pos_scale)
+    windows = proto.table1_windows(test, d.pos_scale, 128, LENGTHS)
+    print(f"classifier: {steps} steps, final batch accuracy {acc:.2f}; windows "
+          f"{' / '.join(str(len(windows[L]['x'])) for L in LENGTHS)} at {' / '.join(map(str, LENGTHS))} frames")
+
+    def gt(b, L):
+        return b["x"][:, :, N_INPUT:N_INPUT + L]
+
+    def smoothed(sigma):
+        return lambda b, L: gaussian_smooth(b["x"][:, :, :N_INPUT + L + 1], sigma, 2)[:, :, N_INPUT:N_INPUT + L]
+
+    def interp(b, L):
+        return proto.interpolation_method(b, -(-L // 10), 1, None)[0][:, :, :L]
+
+    def blend(w):
+        return lambda b, L: w * gt(b, L) + (1 - w) * interp(b, L)
+
+    def hold(b, L):
+        return np.repeat(b["x"][:, :, N_INPUT - 1:N_INPUT], L, 2)
+
+    def model(method):
+        return lambda b, L: method(b, -(-L // 10), 1, jax.random.key(L))[0][:, :, :L]
+
+    rows = {"ground truth": gt, "ground truth smoothed, sigma 1 frame": smoothed(1.0),
+            "ground truth smoothed, sigma 2 frames": smoothed(2.0), "ground truth smoothed, sigma 4 frames":
+            smoothed(4.0), "0.75 ground truth + 0.25 interpolation": blend(0.75),
+            "0.5 ground truth + 0.5 interpolation": blend(0.5), "interpolation (true gap)": interp,
+            "hold last frame": hold}
+    for name, t in zip(args.run_dirs, trained):
+        rows[f"{name} (step {t.step})"] = model(_model_method(t))
+        if t.cfg.model.members > 1:
+            rows[f"{name}, first member alone"] = model(_model_method(member(t)))
+    print("| method | score 40 / 60 / 80 | x ground truth | speed (cm/frame) | speed std over time |")
+    print("|---|---|---|---|---|")
+    ref = None
+    for name, make in rows.items():
+        score, speed, spread = [], [], []
+        for L, b in windows.items():
+            prev = np.asarray(to_common_space(jnp.asarray(b["x"][:, :, N_INPUT - 1:N_INPUT]), b["rel_R"], b["rel_t"]))
+            pred = np.asarray(to_common_space(jnp.asarray(np.asarray(make(b, L), np.float32)), b["rel_R"], b["rel_t"]))
+            clip = np.concatenate([prev, pred], 2)                                   # (B, 2, L + 1, J, 9)
+            score.append(float(np.mean(classify_windows(gdef, params, jnp.asarray(clip))[0])))
+            v = np.linalg.norm(np.diff(clip[..., :3], axis=2), axis=-1) / d.pos_scale  # (B, 2, L, J) cm / frame
+            speed.append(v.mean())
+            spread.append(v.std(2).mean())
+        ref = np.mean(score) if ref is None else ref
+        print(f"| {name} | {' / '.join(f'{s:.2f}' for s in score)} | {np.mean(score) / ref:.2f} | "
+              f"{np.mean(speed):.2f} | {np.mean(spread):.2f} |", flush=True)
+    if trained:
+        stats = proto.l2p_stats(train, d.pos_scale)
+        l2p_windows = proto.table1_windows(test, d.pos_scale, 10 ** 6, (30, 50))
+        for name, t in zip(args.run_dirs, trained):
+            for scale in (0.0, 1.0):
+                l2p = windows_l2p(_model_method(t, latent_scale=scale), l2p_windows, stats, d.n_pred, (30, 50))
+                print(f"{name}: latent scale {scale:g}, L2P 30 / 50 (every window) "
+                      f"{' / '.join(f'{x:.3f}' for x in l2p)}")
+    print(f"{time.time() - t0:.0f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
