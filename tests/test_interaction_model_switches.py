@@ -47,6 +47,7 @@ def test_presets_switches_off_in_paper_and_cpu_on_in_improved():
     assert all(get_config(n).data.tempo == () and not get_config(n).data.reverse for n in PRESETS)
     # one network per preset: an ensemble (model.members) is M times the training budget, opted into by override
     assert all(get_config(n).model.members == 1 for n in PRESETS)
+    assert all(get_config(n).loss.w_speed == 0.0 for n in PRESETS)     # measured, not adopted (ninth round)
 
 
 def test_default_batch_is_one_sample_batch_call(pair_train):
@@ -251,3 +252,34 @@ def test_position_weight_in_the_mse():
     assert float(mse(pos_err, target)) == pytest.approx(0.01 / 9)
     assert float(mse(pos_err, target, 20.0)) == pytest.approx(20 * 0.01 / 9)
     assert float(mse(rot_err, target, 20.0)) == pytest.approx(float(mse(rot_err, target)))
+
+
+def test_speed_energy_asks_for_motion_not_its_phase(pair_windows, pair_train):
+    """The motion-energy term is 0 for the capture and for the capture mirrored through the last input frame (the
+    same speeds, every frame wrong: a large MSE), equals a numpy re-derivation for the capture damped halfway
+    towards that frame, and with loss.w_speed the generator objective grows by exactly w_speed times it."""
+    from inbetween_jax.models.interaction.losses import mse, speed_energy
+    x = np.asarray(pair_windows["x"][:, :, 19:30], np.float64)              # (B, 2, 11, J, 9) real frames
+    prev, gt = x[:, :, :1], x[:, :, 1:]
+    mirrored = gt.copy()
+    mirrored[..., :3] = 2 * prev[..., :3] - gt[..., :3]
+    j = lambda a: jnp.asarray(a, jnp.float32)  # noqa: E731
+    assert float(speed_energy(j(gt), j(gt), j(prev))) == 0.0
+    assert float(speed_energy(j(mirrored), j(gt), j(prev))) < 1e-8
+    assert float(mse(j(mirrored), j(gt))) > 1e-3
+    damped = prev + 0.5 * (gt - prev)
+
+    def mean_speed(a):                                                      # (B, 2, J) metres per frame
+        pos = np.concatenate([prev, a], 2)[..., :3]
+        return np.mean([np.linalg.norm(pos[:, :, t + 1] - pos[:, :, t], axis=-1) for t in range(a.shape[2])], 0)
+    want = np.mean(((mean_speed(damped) - mean_speed(gt)) / mean_speed(gt).mean()) ** 2)
+    np.testing.assert_allclose(float(speed_energy(j(damped), j(gt), j(prev))), want, rtol=1e-3)
+    assert want > 0.05
+    cfg = apply_overrides(TINY, ["loss.w_speed=2.0", "data.ss_max=0.0"])
+    b = training_batch(pair_train, np.random.default_rng(1), cfg)
+    params = ia.init_params(jax.random.key(0), cfg, b["x"].shape[3])
+    fa = pair_train[0].forward_axis.astype(np.float32)
+    (t0, (m0, _)), (t1, (m1, _)) = [generator_objective(params, dict(b, step=jnp.float32(0)), jax.random.key(0),
+                                                        c, fa) for c in (TINY, cfg)]
+    assert "speed" not in m0 and float(m1["speed"]) > 0
+    np.testing.assert_allclose(float(t1 - t0), 2.0 * float(m1["speed"]), rtol=1e-3)

@@ -53,7 +53,9 @@ Ablation switches (Table 1): ``model.interaction`` (False: "w/o interaction mode
 in-betweened independently in its own keypose space), ``model.gan`` ("w/o Inter. GAN"),
 ``model.refiner`` ("w/o Motion Refiner").  Beyond the paper (all off in ``paper`` / ``cpu``):
 ``data.key_inside``, ``model.key_offsets``, ``model.residual``, ``model.tta``, ``loss.w_pos``,
-``loss.adv_start`` / ``loss.adv_ramp``.  Training-data augmentation, off in every preset (measured in the
+``loss.adv_start`` / ``loss.adv_ramp``, ``loss.w_speed`` (0 in every preset: a phase-free motion-energy
+term, :func:`.losses.speed_energy`; the model's rollouts move at about 60 % of the capture's joint speed, ninth
+round of docs/results/interaction.md).  Training-data augmentation, off in every preset (measured in the
 sixth round of docs/results/interaction.md: no gain on the validation take): ``data.tempo`` (copies of the
 training takes played faster / slower, e.g. ``data.tempo=0.8,0.9,1.1,1.25``) and ``data.reverse``
 (time-reversed copies).  Ensembles: ``model.members=M`` (1 in every preset) trains M networks side by side
@@ -142,6 +144,7 @@ class LossConfig:
     w_refine: float = 1.0
     adv_start: int = 0             # the adversarial weight is 0 before this step ...
     adv_ramp: int = 0              # ... then ramps linearly to w_adv over this many steps (0: at once)
+    w_speed: float = 0.0           # beyond the paper: phase-free motion-energy loss (losses.speed_energy)
 
 
 # the former real-CPU-run settings of the train group (Adam 1e-3 behind a global-norm clip of 1)

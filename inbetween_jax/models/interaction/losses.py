@@ -1,7 +1,7 @@
 """Loss terms of the interaction in-betweening model (Sec. 4.1.3 and 4.2), pure functions.
 
-Generator: ``L = w_mse MSE + w_coarse MSE_coarse + w_kl KL + w_refine L_refine + w_adv L_adv + w_pae L_pae``
-(:func:`generator_objective`; ``w_adv`` optionally warmed up late, :func:`adversarial_weight`); the refiner learns ``Refiner(pred) -> ground truth`` on the stop-gradient
+Generator: ``L = w_mse MSE + w_coarse MSE_coarse + w_kl KL + w_refine L_refine + w_adv L_adv + w_pae L_pae
++ w_speed L_speed`` (:func:`generator_objective`; ``w_speed`` 0 in every preset, :func:`speed_energy`; ``w_adv`` optionally warmed up late, :func:`adversarial_weight`); the refiner learns ``Refiner(pred) -> ground truth`` on the stop-gradient
 predictions, the periodic autoencoder reconstructs real pairwise-joint-distance (PJD) dynamics and the
 discriminator (:func:`discriminator_loss`) separates PAE latents of real and generated N = P * l frame PJD
 dynamics.  The parameter groups are disjoint and each only receives gradients of its own term.
@@ -16,7 +16,8 @@ from inbetween_jax.models.interaction.layers import pjd_dynamics
 from inbetween_jax.models.interaction.model import ar_predict, disc_logits, pae_reconstruct, refine
 
 __all__ = ["mse", "kl_divergence", "generator_adversarial", "discriminator_loss", "segments", "pair_pjd",
-           "scheduled_sampling_prob", "adversarial_weight", "generator_objective", "discriminator_objective"]
+           "scheduled_sampling_prob", "adversarial_weight", "speed_energy", "generator_objective",
+           "discriminator_objective"]
 
 
 def mse(pred, target, w_pos: float = 1.0):
@@ -47,6 +48,19 @@ def discriminator_loss(logit_real, logit_fake):
 def segments(x, P: int, l: int):
     """[B, 2, P*l, J, 9] -> [B*P, 2, l, J, 9]: the l-frame segments the refiner works on."""
     return x.reshape(x.shape[:2] + (P, l) + x.shape[3:]).swapaxes(1, 2).reshape((-1, 2, l) + x.shape[3:])
+
+
+def speed_energy(pred, gt, prev):
+    """Phase-free motion-energy loss: per character and joint, the mean joint speed over the predicted frames of
+    ``pred`` against that of ``gt``, squared relative to the batch's mean ground-truth speed (so 0.16 means the
+    speeds are off by about 40 %).  It does not ask for the right frame of a step, only for as much motion as the
+    capture has; a regression to the mean of uncertain steps loses it.  pred, gt [B, 2, N, J, 9], prev
+    [B, 2, 1, J, 9] (the last input frame) -> scalar."""
+    def mean_speed(x):
+        pos = jnp.concatenate([prev, x], 2)[..., :3]
+        return jnp.linalg.norm(pos[:, :, 1:] - pos[:, :, :-1], axis=-1).mean(2)     # [B, 2, J]
+    s_gt = mean_speed(gt)
+    return jnp.mean(((mean_speed(pred) - s_gt) / (jnp.mean(s_gt) + 1e-6)) ** 2)
 
 
 def pair_pjd(feats, rel_R, rel_t, cfg):
@@ -92,6 +106,10 @@ def generator_objective(params, batch, key, cfg, forward_axis):
     ref_loss = mse(refined, segments(gt, P, l), w.w_pos)
     total = total + w.w_refine * ref_loss
     metrics = dict(mse=mse_, coarse_mse=coarse_mse, kl=kl, refine=ref_loss, p_pred=p_pred)
+    if w.w_speed > 0:
+        speed = speed_energy(pred, gt, batch["x"][:, :, T - 1:T])
+        total = total + w.w_speed * speed
+        metrics["speed"] = speed
     aux = {}
     if m.gan:
         prev = batch["x"][:, :, T - 1:T]
