@@ -256,7 +256,7 @@ def test_position_weight_in_the_mse():
 
 def test_speed_energy_asks_for_motion_not_its_phase(pair_windows, pair_train):
     """The motion-energy term is 0 for the capture and for the capture mirrored through the last input frame (the
-    same speeds, every frame wrong: a large MSE), equals a numpy re-derivation for the capture damped halfway
+    same speeds, every frame wrong: a large MSE), has a finite gradient on held frames, equals a numpy re-derivation for the capture damped halfway
     towards that frame, and with loss.w_speed the generator objective grows by exactly w_speed times it."""
     from inbetween_jax.models.interaction.losses import mse, speed_energy
     x = np.asarray(pair_windows["x"][:, :, 19:30], np.float64)              # (B, 2, 11, J, 9) real frames
@@ -266,6 +266,8 @@ def test_speed_energy_asks_for_motion_not_its_phase(pair_windows, pair_train):
     j = lambda a: jnp.asarray(a, jnp.float32)  # noqa: E731
     assert float(speed_energy(j(gt), j(gt), j(prev))) == 0.0
     assert float(speed_energy(j(mirrored), j(gt), j(prev))) < 1e-8
+    held = np.repeat(prev, gt.shape[2], 2)                                  # a held pose (the keypose after arrival)
+    assert np.isfinite(np.asarray(jax.grad(speed_energy)(j(held), j(gt), j(prev)))).all()
     assert float(mse(j(mirrored), j(gt))) > 1e-3
     damped = prev + 0.5 * (gt - prev)
 
