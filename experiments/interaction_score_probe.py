@@ -1,12 +1,13 @@
 """What the interaction score responds to: ground truth degraded in known ways, next to trained models.
 
-    python experiments/interaction_score_probe.py [RUN_DIR ...] [--source ../shared/data/cmu_pairs] [--steps 400]
+    python experiments/interaction_score_probe.py [RUN_DIR[@STEP] ...] [--source ../shared/data/cmu_pairs]
+        [--steps 400]
 
 Trains the bench's interaction classifier (``--steps``; the bench's own count by default) on the training takes,
 then scores every 40-, 60- and 80-frame test window (the bench's interaction columns) of: ground truth; ground
 truth low-pass filtered in time (a Gaussian of 1, 2 and 4 frames); ground truth blended with interpolation;
-interpolation; holding the last frame; and each RUN_DIR (a training run at its validation-selected step, or a
-shipped weights folder; ensembles also as their first member alone).  Beside each score: the mean joint speed and
+interpolation; holding the last frame; and each RUN_DIR (a training run at its validation-selected step or at
+``@STEP``, or a shipped weights folder; ensembles also as their first member alone).  Beside each score: the mean joint speed and
 its standard deviation over time (cm per frame), so a reader can see whether a model loses the score to damped
 motion.  Also prints L2P at 30 / 50 frames (every window) for the runs with latent scales 0 and 1, to show whether
 the latent carries anything.  docs/results/interaction.md quotes its output.
@@ -34,6 +35,12 @@ def gaussian_smooth(x, sigma: float, axis: int):
     return np.moveaxis(out, -1, axis).astype(np.float32)
 
 
+def run_and_step(arg: str):
+    """``RUN_DIR@STEP`` -> (RUN_DIR, STEP); ``RUN_DIR`` -> (RUN_DIR, None): the validation-selected step."""
+    head, sep, tail = arg.rpartition("@")
+    return (head, int(tail)) if sep and tail.isdigit() else (arg, None)
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("run_dirs", nargs="*")
@@ -52,7 +59,7 @@ def main(argv=None) -> int:
     t0, d = time.time(), DataConfig()
     try:
         pairs = load_pairs(args.source, d.pair_distance)
-        trained = [load(load_run(r)) for r in args.run_dirs]
+        trained = [load(load_run(*run_and_step(r))) for r in args.run_dirs]
     except (UserError, ValueError, OSError) as e:   # RunError is a ValueError
         print(f"interaction_score_probe: {e}", file=sys.stderr)
         return 2
