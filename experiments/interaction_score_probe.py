@@ -7,10 +7,10 @@ Trains the bench's interaction classifier (``--steps``; the bench's own count by
 then scores every 40-, 60- and 80-frame test window (the bench's interaction columns) of: ground truth; ground
 truth low-pass filtered in time (a Gaussian of 1, 2 and 4 frames); ground truth blended with interpolation;
 interpolation; holding the last frame; and each RUN_DIR (a training run at its validation-selected step or at
-``@STEP``, or a shipped weights folder; ensembles also as their first member alone).  Beside each score: the mean joint speed and
-its standard deviation over time (cm per frame), so a reader can see whether a model loses the score to damped
-motion.  Also prints L2P at 30 / 50 frames (every window) for the runs with latent scales 0 and 1, to show whether
-the latent carries anything.  docs/results/interaction.md quotes its output.
+``@STEP``, or a shipped weights folder; ensembles also as their first member alone).  Beside each score: the mean
+joint speed and its standard deviation over time (cm per frame), so a reader can see whether a model loses the
+score to damped motion.  Also prints L2P at 30 / 50 frames (every window) for the runs with latent scales 0 and 1,
+to show whether the latent carries anything.  docs/results/interaction.md quotes its output.
 """
 import argparse
 import sys
@@ -101,13 +101,14 @@ def main(argv=None) -> int:
             rows[f"{name}, first member alone"] = model(_model_method(member(t)))
     print("| method | score 40 / 60 / 80 | x ground truth | speed (cm/frame) | speed std over time |")
     print("|---|---|---|---|---|")
+    prevs = {L: np.asarray(to_common_space(jnp.asarray(b["x"][:, :, N_INPUT - 1:N_INPUT]), b["rel_R"], b["rel_t"]))
+             for L, b in windows.items()}                                   # last context frame, common space
     ref = None
     for name, make in rows.items():
         score, speed, spread = [], [], []
         for L, b in windows.items():
-            prev = np.asarray(to_common_space(jnp.asarray(b["x"][:, :, N_INPUT - 1:N_INPUT]), b["rel_R"], b["rel_t"]))
             pred = np.asarray(to_common_space(jnp.asarray(np.asarray(make(b, L), np.float32)), b["rel_R"], b["rel_t"]))
-            clip = np.concatenate([prev, pred], 2)                                   # (B, 2, L + 1, J, 9)
+            clip = np.concatenate([prevs[L], pred], 2)                                   # (B, 2, L + 1, J, 9)
             score.append(float(np.mean(classify_windows(gdef, params, jnp.asarray(clip))[0])))
             v = np.linalg.norm(np.diff(clip[..., :3], axis=2), axis=-1) / d.pos_scale  # (B, 2, L, J) cm / frame
             speed.append(v.mean())

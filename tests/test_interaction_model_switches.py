@@ -256,8 +256,9 @@ def test_position_weight_in_the_mse():
 
 def test_speed_energy_asks_for_motion_not_its_phase(pair_windows, pair_train):
     """The motion-energy term is 0 for the capture and for the capture mirrored through the last input frame (the
-    same speeds, every frame wrong: a large MSE), has a finite gradient on held frames, equals a numpy re-derivation for the capture damped halfway
-    towards that frame, and with loss.w_speed the generator objective grows by exactly w_speed times it."""
+    same speeds, every frame wrong: a large MSE), has a finite gradient on held frames, equals a numpy re-derivation
+    for the capture damped halfway towards that frame, and with loss.w_speed the generator objective grows by
+    exactly w_speed times it."""
     from inbetween_jax.models.interaction.losses import mse, speed_energy
     x = np.asarray(pair_windows["x"][:, :, 19:30], np.float64)              # (B, 2, 11, J, 9) real frames
     prev, gt = x[:, :, :1], x[:, :, 1:]

@@ -1,8 +1,9 @@
 """Loss terms of the interaction in-betweening model (Sec. 4.1.3 and 4.2), pure functions.
 
 Generator: ``L = w_mse MSE + w_coarse MSE_coarse + w_kl KL + w_refine L_refine + w_adv L_adv + w_pae L_pae
-+ w_speed L_speed`` (:func:`generator_objective`; ``w_speed`` 0 in every preset, :func:`speed_energy`; ``w_adv`` optionally warmed up late, :func:`adversarial_weight`); the refiner learns ``Refiner(pred) -> ground truth`` on the stop-gradient
-predictions, the periodic autoencoder reconstructs real pairwise-joint-distance (PJD) dynamics and the
++ w_speed L_speed`` (:func:`generator_objective`; ``w_speed`` 0 in every preset, :func:`speed_energy`; ``w_adv``
+optionally warmed up late, :func:`adversarial_weight`); the refiner learns ``Refiner(pred) -> ground truth`` on the
+stop-gradient predictions, the periodic autoencoder reconstructs real pairwise-joint-distance (PJD) dynamics and the
 discriminator (:func:`discriminator_loss`) separates PAE latents of real and generated N = P * l frame PJD
 dynamics.  The parameter groups are disjoint and each only receives gradients of its own term.
 """
@@ -107,13 +108,13 @@ def generator_objective(params, batch, key, cfg, forward_axis):
     ref_loss = mse(refined, segments(gt, P, l), w.w_pos)
     total = total + w.w_refine * ref_loss
     metrics = dict(mse=mse_, coarse_mse=coarse_mse, kl=kl, refine=ref_loss, p_pred=p_pred)
+    prev = batch["x"][:, :, T - 1:T]                                   # the last input frame
     if w.w_speed > 0:
-        speed = speed_energy(pred, gt, batch["x"][:, :, T - 1:T])
+        speed = speed_energy(pred, gt, prev)
         total = total + w.w_speed * speed
         metrics["speed"] = speed
     aux = {}
     if m.gan:
-        prev = batch["x"][:, :, T - 1:T]
         pjd_real = pair_pjd(batch["x"][:, :, T - 1:T + N], batch["rel_R"], batch["rel_t"], cfg)
         pjd_fake = pair_pjd(jnp.concatenate([prev, pred], 2), batch["rel_R"], batch["rel_t"], cfg)
         adv = generator_adversarial(disc_logits(sg(params["pae"]), sg(params["disc"]), pjd_fake, cfg, J))
