@@ -19,20 +19,10 @@ import time
 import numpy as np
 
 from inbetween_jax.errors import UserError
+from inbetween_jax.models.interaction.bank import gaussian_lowpass
 from inbetween_jax.train.run import load_run
 
 LENGTHS = (40, 60, 80)
-
-
-def gaussian_smooth(x, sigma: float, axis: int):
-    """``x`` filtered along ``axis`` by a normalised Gaussian of ``sigma`` frames (edges held)."""
-    r = int(np.ceil(3 * sigma))
-    k = np.exp(-0.5 * (np.arange(-r, r + 1) / sigma) ** 2)
-    k /= k.sum()
-    x = np.moveaxis(np.asarray(x, np.float64), axis, -1)
-    pad = np.concatenate([np.repeat(x[..., :1], r, -1), x, np.repeat(x[..., -1:], r, -1)], -1)
-    out = sum(w * pad[..., i:i + x.shape[-1]] for i, w in enumerate(k))
-    return np.moveaxis(out, -1, axis).astype(np.float32)
 
 
 def run_and_step(arg: str):
@@ -76,7 +66,7 @@ def main(argv=None) -> int:
         return b["x"][:, :, N_INPUT:N_INPUT + L]
 
     def smoothed(sigma):
-        return lambda b, L: gaussian_smooth(b["x"][:, :, :N_INPUT + L + 1], sigma, 2)[:, :, N_INPUT:N_INPUT + L]
+        return lambda b, L: gaussian_lowpass(b["x"][:, :, :N_INPUT + L + 1], sigma, 2)[:, :, N_INPUT:N_INPUT + L]
 
     def interp(b, L):
         return proto.interpolation_method(b, -(-L // 10), 1, None)[0][:, :, :L]
@@ -97,6 +87,8 @@ def main(argv=None) -> int:
             "hold last frame": hold}
     for name, t in zip(args.run_dirs, trained):
         rows[f"{name} (step {t.step})"] = model(_model_method(t))
+        if t.bank is not None:
+            rows[f"{name}, network alone (motion bank off)"] = model(_model_method(t, use_bank=False))
         if t.cfg.model.members > 1:
             rows[f"{name}, first member alone"] = model(_model_method(member(t)))
     print("| method | score 40 / 60 / 80 | x ground truth | speed (cm/frame) | speed std over time |")

@@ -6,11 +6,14 @@ baseline (the same network trained with ``model.interaction=false model.gan=fals
 ``run_dir``: ``<run_dir>_indep``, a ``_full`` -> ``_indep`` sibling, or ``run_dir/indep``) and per-character
 interpolation, plus ground truth for the interaction score. Ablations: the same checkpoint with the refiner
 switched off (on, for runs that leave it off), ``<run_dir>_nogan`` (trained with ``model.gan=false``) when
-present, and for an ensemble (``model.members`` > 1) its first member alone. Without a trained run the
+present, for an ensemble (``model.members`` > 1) its first member alone, and for a run with a motion bank
+(:mod:`.bank`) the network without it, the bank's in-between alone and interpolation with the bank's texture
+(neither of the last two uses the network). Without a trained run the
 benchmark is skipped (the markdown says why and how to train one).
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import os
@@ -56,18 +59,23 @@ def _restore(path):
     return load(load_run(path))
 
 
-def _model_method(trained, use_refiner=None, gap="true", latent_scale=None):
+def _model_method(trained, use_refiner=None, gap="true", latent_scale=None, use_bank=True):
     """Windows -> (S, B, 2, steps * l, J, 9) rollouts of ``trained`` (no early stop).
 
     ``gap`` is what a timing-conditioned model (``model.tta`` / ``model.residual``) is told about the gap:
     ``"true"`` -- the window's own transition length L (whatever the rollout length, so the stop-rule rollout of
     2 L frames still aims at frame L + 1); ``"guess"`` -- :func:`~inbetween_jax.evaluation.interaction.guess_gap_length`,
     the same guess the guessed-length interpolation baseline uses (flagged models, ``data.tta_guess``, are
-    told that it is a guess)."""
+    told that it is a guess).  A run with a motion bank (:mod:`.bank`) gets its in-between and texture when told
+    the true gap, unless ``use_bank`` is false; with a guessed gap the network runs alone (the bank's windows
+    are warped to arrive at the gap's end, and on the validation take its blend at a guessed gap raised L2P at
+    50 frames from 0.943x to 0.970x the guessed-length interpolation's)."""
     import jax
     from inbetween_jax.evaluation.interaction import N_INPUT, guess_gap_length
+    from inbetween_jax.models.interaction.bank import apply_bank, foot_indices
     from inbetween_jax.models.interaction.model import sample_rollouts
     cfg, fa = trained.cfg, trained.forward_axis.astype(np.float32)
+    feet = foot_indices(trained.skeleton)
     if gap not in ("true", "guess"):
         raise ValueError(f"gap must be 'true' or 'guess', not {gap!r}")
     cache = {}
@@ -79,15 +87,39 @@ def _model_method(trained, use_refiner=None, gap="true", latent_scale=None):
                 latent_scale=latent_scale, gap_known=gap == "true")[0])
         B, L = b["x"].shape[0], b["x"].shape[2] - N_INPUT - 1
         g = np.full(B, L, np.float32) if gap == "true" else guess_gap_length(b).astype(np.float32)
-        return np.asarray(cache[(steps, samples)](trained.params, b["x"][:, :, :N_INPUT], b["keypose"], b["rel_R"],
-                                                  b["rel_t"], g, key))
+        out = cache[(steps, samples)](trained.params, b["x"][:, :, :N_INPUT], b["keypose"], b["rel_R"], b["rel_t"],
+                                      g, key)
+        if use_bank and trained.bank is not None and gap == "true":
+            return apply_bank(trained.bank, cfg.model, out, b["x"][:, :, :N_INPUT], b["keypose"], g, feet)
+        return np.asarray(out)
     return method
+
+
+def _bank_baselines(trained) -> dict:
+    """Rows that split a bank run's gain into network and bank: the bank's in-between alone and interpolation
+    with the bank's texture (neither uses the network)."""
+    from inbetween_jax.evaluation.interaction import N_INPUT, interpolation_method
+    from inbetween_jax.models.interaction.bank import apply_bank, foot_indices
+    m, rows = trained.cfg.model, {}
+    feet = foot_indices(trained.skeleton)
+
+    def on_interpolation(model_cfg):
+        def method(b, steps, samples, key):
+            L = b["x"].shape[2] - N_INPUT - 1
+            return apply_bank(trained.bank, model_cfg, interpolation_method(b, steps, samples, key),
+                              b["x"][:, :, :N_INPUT], b["keypose"], np.full(len(b["x"]), L), feet)
+        return method
+    if m.bank_k > 0 and m.bank_weight > 0:
+        rows[f"Motion bank alone (mean of {m.bank_k} nearest, warped; no network)"] = (
+            "bank", on_interpolation(dataclasses.replace(m, bank_weight=1.0, texture_sigma=0.0)))
+    if m.texture_sigma > 0:
+        rows[f"Interpolation + motion texture (sigma {m.texture_sigma:g}; no network)"] = (
+            "bank", on_interpolation(dataclasses.replace(m, bank_k=0)))
+    return rows
 
 
 def member(trained, index: int = 0):
     """Network ``index`` of an ensemble (``model.members`` > 1) as a single-network model (same checkpoint)."""
-    import dataclasses
-
     import jax
     cfg = dataclasses.replace(trained.cfg, model=dataclasses.replace(trained.cfg.model, members=1))
     return dataclasses.replace(trained, cfg=cfg, params=jax.tree.map(lambda a: a[index], trained.params))
@@ -179,6 +211,16 @@ def run(source, results_dir: str, run_dir, quick: bool = False) -> dict:
         else:   # improved: the refiner is trained but off at inference (chosen on the validation take)
             methods["with Motion Refiner (same checkpoint, refiner on)"] = ("interaction",
                                                                           _model_method(trained, True))
+        if trained.bank is not None:
+            methods["w/o motion bank (same checkpoint, the network alone)"] = ("interaction",
+                                                                             _model_method(trained, use_bank=False))
+            m = cfg.model
+            if m.texture_sigma > 0 and m.bank_k > 0 and m.bank_weight > 0:
+                plain = dataclasses.replace(trained, cfg=dataclasses.replace(cfg, model=dataclasses.replace(
+                    m, texture_sigma=0.0)))
+                methods["w/o motion texture (same checkpoint, the bank's in-between blended in)"] = (
+                    "interaction", _model_method(plain))
+            methods.update(_bank_baselines(trained))
         nogan = full_dir + "_nogan"
         if _has_run(nogan):
             g = _restore(nogan)
@@ -246,7 +288,7 @@ def run(source, results_dir: str, run_dir, quick: bool = False) -> dict:
     for name, res in results.items():
         model = groups[name]
         rows += flat_rows(proto.long_rows(res), table="interaction_table1", data=data_name, model=model,
-                          variant=name if model in ("interaction", "paper") else "", keys=("frames",))
+                          variant=name if model in ("interaction", "paper", "bank") else "", keys=("frames",))
     for name, s in stops.items():
         rows += flat_rows([{"method": name, "reached": s["reached"], "mean_frames": s["mean_frames"],
                             "median_closest_m": s["median_closest_m"]}], table="interaction_stop", data=data_name,

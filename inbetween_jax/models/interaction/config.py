@@ -64,7 +64,11 @@ ships them as one model whose rollout is the mean of the members' rollouts (:fun
 told as a guess: ``data.tta_guess=p`` (0 in every preset; needs ``model.tta``) tells a fraction p of every batch
 the evaluation's distance / speed guess of the gap instead of the true one, with a 4th time-to-arrival input
 saying which (:func:`.model.tta_flagged`); rollouts told a guessed gap (the bench's "gap guessed" rows, or a
-rollout that guesses its own) pass ``gap_known=False``, so the model can learn how wrong the guess tends to be.  The
+rollout that guesses its own) pass ``gap_known=False``, so the model can learn how wrong the guess tends to be.
+Inference only, off in every preset: the motion bank (:mod:`.bank`; ``model.bank_k`` / ``model.bank_weight``
+blend in the mean of the k nearest training windows, warped onto the gap's ends; ``model.texture_sigma`` /
+``model.texture_gain`` add the nearest window's high-frequency position band), read from ``bank.npz`` in the run
+folder (``experiments/build_bank.py`` writes it and sets the switches).  The
 autoregressive training length (``data.ar_steps``) and the scheduled-sampling curriculum
 (``data.ss_ramp_steps``, ``data.ss_max``) are ``data`` fields: they decide which frames a training sample holds
 and how often predictions are fed back as inputs.
@@ -131,6 +135,11 @@ class ModelConfig:
     tta_speed: float = 0.03        # tta rollouts without a given gap: guess gap = keypose distance / this (m/frame)
     members: int = 1               # ensemble: this many networks trained side by side (vmap); a rollout is the
                                    # mean of the members' whole rollouts
+    bank_k: int = 0                # inference: blend in the mean of the k nearest motion-bank windows (0: off)
+    bank_weight: float = 0.0       # inference: its weight (0: the network alone; 1: the bank alone)
+    texture_sigma: float = 0.0     # inference: add the nearest bank window's position band above a Gaussian
+                                   # low-pass of this many frames (0: off)
+    texture_gain: float = 1.0      # inference: the texture's gain
 
 
 @dataclasses.dataclass(frozen=True)

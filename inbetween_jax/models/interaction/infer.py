@@ -10,6 +10,7 @@ Users' inputs go to each character's keyframe space exactly as
 from __future__ import annotations
 
 import dataclasses
+import os
 
 import jax
 import numpy as np
@@ -20,6 +21,7 @@ from inbetween_jax.data.user_input import check_skeleton, finite_or_fail, read_k
 from inbetween_jax.errors import UserError
 from inbetween_jax.geometry import quat_fix_sign_np, quat_from_forward_up, quat_inv, quat_mul, quat_normalize
 from inbetween_jax.geometry.fit import fit_rotations
+from inbetween_jax.models.interaction.bank import BANK_FILE, MotionBank, apply_bank, bank_enabled, foot_indices
 from inbetween_jax.models.interaction.config import Config
 from inbetween_jax.models.interaction.features import (apply_space, key_space_inputs, root_space,
                                                        world_joint_features)
@@ -28,7 +30,7 @@ from inbetween_jax.models.spec import InfillResult
 from inbetween_jax.train.config import config_from_dict
 from inbetween_jax.train.run import Run, RunError, restore_state
 
-__all__ = ["Trained", "load", "infill_features", "features_to_motion", "infill"]
+__all__ = ["Trained", "load", "load_bank", "infill_features", "features_to_motion", "infill"]
 
 @dataclasses.dataclass
 class Trained:
@@ -40,6 +42,7 @@ class Trained:
     skeleton: Skeleton | None
     step: int
     run_dir: str
+    bank: MotionBank | None = None    # motion bank (``bank.npz`` in the run folder) when the config uses one
 
 
 def load(run: Run) -> Trained:
@@ -60,7 +63,34 @@ def load(run: Run) -> Trained:
     target = jax.eval_shape(lambda k: init_state(cfg, J, k), jax.random.key(0))
     state = restore_state(run, target)
     skel = Skeleton.from_dict(run.skeleton) if run.skeleton else None
-    return Trained(cfg, state["params"], J, fa, skel, int(run.step), run.run_dir)
+    return Trained(cfg, state["params"], J, fa, skel, int(run.step), run.run_dir,
+                   load_bank(run.run_dir, cfg, J))
+
+
+def load_bank(run_dir: str, cfg: Config, num_joints: int) -> MotionBank | None:
+    """The run folder's motion bank when ``cfg`` turns it on (:func:`.bank.bank_enabled`), else None.
+
+    Raises:
+        RunError: a negative bank / texture setting, or the bank file missing or unreadable (one line).
+    """
+    m = cfg.model
+    if min(m.bank_k, m.bank_weight, m.texture_sigma) < 0 or m.bank_weight > 1:
+        raise RunError(f"{run_dir}: model.bank_k, model.bank_weight (at most 1) and model.texture_sigma must not "
+                       f"be negative (got {m.bank_k}, {m.bank_weight}, {m.texture_sigma})")
+    if not bank_enabled(m):
+        return None
+    path = os.path.join(run_dir, BANK_FILE)
+    if not os.path.isfile(path):
+        raise RunError(f"{run_dir}: model.bank_k / model.texture_sigma need a motion bank, and {BANK_FILE} is "
+                       f"missing (write one with experiments/build_bank.py)")
+    try:
+        bank = MotionBank.load(path)
+    except UserError as e:
+        raise RunError(str(e)) from None
+    if bank.takes[0].shape[2] != num_joints or abs(bank.pos_scale - cfg.data.pos_scale) > 1e-12:
+        raise RunError(f"{path}: the bank has {bank.takes[0].shape[2]} joints at position scale {bank.pos_scale:g}, "
+                       f"the model {num_joints} at {cfg.data.pos_scale:g}")
+    return bank
 
 
 def infill_features(trained: Trained, context, keyframes, frames: int, num_samples: int, seed: int = 0):
@@ -70,8 +100,9 @@ def infill_features(trained: Trained, context, keyframes, frames: int, num_sampl
     up to the start frame; keyframes: (2, J, 9) world features of the keyposes.  It is rolled out for
     exactly ceil(frames / n_pred) steps (no early stop) and the first ``frames`` frames are kept.  Models
     with a time-to-arrival input (``model.tta`` / ``model.residual``) are told that the keyframe follows
-    frame ``frames``; the paper's model has none and only its output is cut.  Returns (S, 2, frames, J, 9)
-    world features (float64).
+    frame ``frames``; the paper's model has none and only its output is cut.  A run whose config turns the
+    motion bank on gets its in-between and texture over the frames (:func:`.bank.apply_bank`).  Returns
+    (S, 2, frames, J, 9) world features (float64).
     """
     cfg, fa = trained.cfg, trained.forward_axis
     b = key_space_inputs(context, keyframes, fa, cfg.data.pos_scale)
@@ -79,8 +110,11 @@ def infill_features(trained: Trained, context, keyframes, frames: int, num_sampl
     steps = -(-frames // cfg.data.n_pred)
     fn = jax.jit(lambda p, w, kp, rr, rt, k: sample_rollouts(p, w, kp, rr, rt, k, cfg, fa.astype(np.float32),
                                                             steps, num_samples, threshold=-1.0, gap=frames)[0])
-    out = np.asarray(fn(trained.params, b["x"], b["keypose"], b["rel_R"], b["rel_t"], jax.random.key(seed)),
-                     np.float64)[:, 0, :, :frames]                               # (S, 2, frames, J, 9)
+    out = fn(trained.params, b["x"], b["keypose"], b["rel_R"], b["rel_t"], jax.random.key(seed))
+    if trained.bank is not None:
+        feet = foot_indices(trained.skeleton)
+        out = apply_bank(trained.bank, cfg.model, out, b["x"], b["keypose"], [frames], feet)
+    out = np.asarray(out, np.float64)[:, 0, :, :frames]                        # (S, 2, frames, J, 9)
     out[..., :3] /= cfg.data.pos_scale
     return apply_space(out, R[None, :, None], t[None, :, None])
 

@@ -1,0 +1,242 @@
+"""A motion bank of real two-person capture: nearest-neighbour in-betweens and motion texture.
+
+Beyond the paper; inference only (the trained network is the same with or without), all off unless a run's
+config turns them on (``model.bank_k``, ``model.bank_weight``, ``model.texture_sigma``,
+``model.texture_gain``).  The bank holds the training takes' world features (``bank.npz`` in a run or shipped
+weights folder, written by ``experiments/build_bank.py``); a query is a test window's context and keyposes,
+each character in its keyframe space as :func:`~.features.keyframe_sample` builds them.
+
+* :func:`knn_inbetween` -- the ``k`` bank windows of the same gap length whose last context frames (positions
+  and velocity) and keyposes (positions), both characters, lie nearest to the query's; each is warped (Witkin &
+  Popovic 1995) to start at the query's last context frame and end at its keypose (the two end offsets blended
+  linearly over the gap) and the ``k`` are averaged.  :func:`apply_bank` blends that with the network's rollout
+  (``bank_weight``).
+* :func:`texture` -- motion texturing (Pullen & Bregler 2002): the high-frequency band of the nearest window's
+  joint positions (the window minus its Gaussian low-pass of ``texture_sigma`` frames) is added to the
+  in-between, faded in and out over :data:`FADE` frames at either end so the context and keypose stay continuous.
+  Rotations are left alone, and so are feet near the floor (:func:`apply_bank`).  The network's rollouts are smooth (they move at about 60 % of the capture's joint
+  speed); the interaction classifier tells them from capture by this band (docs/results/interaction.md, tenth
+  round).
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+
+import numpy as np
+
+from inbetween_jax.errors import UserError
+from inbetween_jax.metrics.foot import SKATING_HEIGHT_CM
+from inbetween_jax.models.interaction.features import keyframe_sample
+
+__all__ = ["BANK_FILE", "SWITCHES", "MATCH_FRAMES", "FADE", "MotionBank", "gaussian_lowpass", "match_features",
+           "knn_inbetween", "texture", "apply_bank", "bank_enabled", "foot_indices"]
+
+BANK_FILE = "bank.npz"
+SWITCHES = ("model.bank_k", "model.bank_weight", "model.texture_sigma", "model.texture_gain")   # inference only
+MATCH_FRAMES = 3          # last context frames whose joint positions are matched
+VELOCITY_WEIGHT = 5.0     # weight of the last context frame's velocity (m / frame) in the match
+FADE = 4                  # texture fade-in / fade-out frames at either end of the gap
+CACHED_LENGTHS = 32       # gap lengths whose match features a bank keeps
+
+
+@dataclasses.dataclass
+class MotionBank:
+    """Training takes for retrieval.  takes: per take (2, T, J, 9) float32 world features (file units);
+    forward_axis: (3,) the root's local facing axis; pos_scale: file units -> model units (metres);
+    stride: frames between bank windows.  Their match features (:meth:`index`) are cached per gap length."""
+    takes: tuple
+    names: tuple
+    forward_axis: np.ndarray
+    pos_scale: float
+    stride: int = 2
+    _cache: dict = dataclasses.field(default_factory=dict, repr=False, compare=False)
+
+    @classmethod
+    def from_pairs(cls, pairs, pos_scale: float, stride: int = 2) -> "MotionBank":
+        """A bank of :class:`~.data.PairedMotion` s (one skeleton and facing axis)."""
+        if not pairs:
+            raise UserError("motion bank: no training pairs to build it from")
+        return cls(tuple(np.asarray(p.feats, np.float32) for p in pairs), tuple(p.name for p in pairs),
+                   np.asarray(pairs[0].forward_axis, np.float64), float(pos_scale), int(stride))
+
+    @property
+    def num_frames(self) -> int:
+        return int(sum(t.shape[1] for t in self.takes))
+
+    def save(self, path: str) -> None:
+        """Write ``path`` (npz) atomically."""
+        arrays = {f"take_{i:03d}": t for i, t in enumerate(self.takes)}
+        tmp = path + ".tmp.npz"
+        np.savez_compressed(tmp, names=np.asarray(self.names), forward_axis=self.forward_axis,
+                            pos_scale=np.float64(self.pos_scale), stride=np.int64(self.stride), **arrays)
+        os.replace(tmp, path)
+
+    @classmethod
+    def load(cls, path: str) -> "MotionBank":
+        """Read a bank written by :meth:`save`.  Raises UserError (one line) on a missing or malformed file."""
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                keys = sorted(k for k in z.files if k.startswith("take_"))
+                takes = tuple(np.asarray(z[k], np.float32) for k in keys)
+                bank = cls(takes, tuple(str(n) for n in z["names"]), np.asarray(z["forward_axis"], np.float64),
+                           float(z["pos_scale"]), int(z["stride"]))
+        except (OSError, KeyError, ValueError) as e:
+            raise UserError(f"{path}: not a readable motion bank ({e})") from None
+        if not takes or any(t.ndim != 4 or t.shape[0] != 2 or t.shape[-1] != 9 for t in takes):
+            raise UserError(f"{path}: not a motion bank (expected takes of shape (2, T, J, 9))")
+        return bank
+
+    def index(self, n_input: int, gap: int) -> np.ndarray:
+        """Match features (N, D) of every bank window of ``n_input`` context frames, ``gap`` frames and the
+        keyframe (stride :attr:`stride`), cached for the :data:`CACHED_LENGTHS` gap lengths used last (about 5 MB
+        each for the shipped bank); only the matched frames are transformed."""
+        key = (n_input, gap)
+        if key in self._cache:
+            self._cache[key] = self._cache.pop(key)                       # most recently used last
+        else:
+            while len(self._cache) >= CACHED_LENGTHS:
+                self._cache.pop(next(iter(self._cache)))
+            starts = self._starts(n_input, gap)
+            lead = n_input - MATCH_FRAMES
+            parts = [keyframe_sample(self.takes[i], s + lead, MATCH_FRAMES, gap + MATCH_FRAMES, self.forward_axis)
+                     for i, s in starts]
+            ctx = np.stack([p["x"] for p in parts]).astype(np.float32)
+            kp = np.stack([p["keypose"] for p in parts]).astype(np.float32)
+            self._cache[key] = match_features(ctx * self._scale, kp * self._scale)
+        return self._cache[key]
+
+    def gather(self, n_input: int, gap: int, idx) -> np.ndarray:
+        """Bank windows ``idx`` (any shape) of :meth:`index`'s order in each character's keyframe space,
+        positions scaled: (*idx.shape, 2, n_input + gap + 1, J, 9)."""
+        idx = np.asarray(idx)
+        starts = self._starts(n_input, gap)
+        length = n_input + gap + 1
+        x = np.stack([keyframe_sample(self.takes[starts[i][0]], starts[i][1], length, length - 1,
+                                      self.forward_axis)["x"] for i in idx.reshape(-1)]).astype(np.float32)
+        return (x * self._scale).reshape(idx.shape + x.shape[1:])
+
+    @property
+    def _scale(self) -> np.ndarray:
+        return np.array([self.pos_scale] * 3 + [1.0] * 6, np.float32)
+
+    def _starts(self, n_input: int, gap: int) -> list:
+        """[(take, first frame)] of every window of n_input + gap + 1 frames."""
+        length = n_input + gap + 1
+        starts = [(i, s) for i, t in enumerate(self.takes) for s in range(0, t.shape[1] - length + 1, self.stride)]
+        if not starts:
+            raise UserError(f"motion bank: no take is long enough for a {gap}-frame gap "
+                            f"({length} frames with the context)")
+        return starts
+
+
+def gaussian_lowpass(x, sigma: float, axis: int):
+    """``x`` filtered along ``axis`` by a normalised Gaussian of ``sigma`` frames, truncated at 3 sigma, the
+    edge frames repeated beyond the ends."""
+    r = int(np.ceil(3 * sigma))
+    k = np.exp(-0.5 * (np.arange(-r, r + 1) / sigma) ** 2)
+    k /= k.sum()
+    x = np.moveaxis(np.asarray(x, np.float64), axis, -1)
+    pad = np.concatenate([np.repeat(x[..., :1], r, -1), x, np.repeat(x[..., -1:], r, -1)], -1)
+    out = sum(w * pad[..., i:i + x.shape[-1]] for i, w in enumerate(k))
+    return np.moveaxis(out, -1, axis).astype(np.float32)
+
+
+def match_features(context, keypose) -> np.ndarray:
+    """context (B, 2, >= MATCH_FRAMES, J, >= 3) key-space frames ending at the last context frame, keypose
+    (B, 2, J, >= 3) -> (B, D) the vector nearest neighbours are found by (positions in model units)."""
+    c = np.asarray(context, np.float32)[..., :3]
+    vel = (c[:, :, -1] - c[:, :, -2]) * VELOCITY_WEIGHT
+    parts = (c[:, :, -MATCH_FRAMES:], vel, np.asarray(keypose, np.float32)[..., :3])
+    return np.concatenate([p.reshape(len(c), -1) for p in parts], 1)
+
+
+def _nearest(bank: MotionBank, context, keypose, gap: int, k: int) -> np.ndarray:
+    """-> the k nearest bank windows, nearest first: (B, k, 2, n_input + gap + 1, J, 9)."""
+    n = context.shape[2]
+    feats = bank.index(n, gap)
+    f = match_features(context, keypose)
+    d2 = (f ** 2).sum(1)[:, None] + (feats ** 2).sum(1)[None] - 2.0 * f @ feats.T
+    k = min(k, len(feats))
+    idx = np.argpartition(d2, k - 1, axis=1)[:, :k] if k < len(feats) else np.tile(np.arange(k), (len(f), 1))
+    order = np.argsort(np.take_along_axis(d2, idx, 1), 1)
+    return bank.gather(n, gap, np.take_along_axis(idx, order, 1))
+
+
+def knn_inbetween(bank: MotionBank, context, keypose, gap: int, k: int) -> np.ndarray:
+    """Mean of the ``k`` nearest bank windows, each warped onto the query's last context frame and keypose.
+
+    context (B, 2, n_input, J, 9), keypose (B, 2, J, 9) in key space (model units) -> (B, 2, gap, J, 9)."""
+    context, keypose = np.asarray(context, np.float32), np.asarray(keypose, np.float32)
+    near = _nearest(bank, context, keypose, gap, k)
+    n = context.shape[2]
+    t = (np.arange(1, gap + 1, dtype=np.float32) / (gap + 1))[None, None, :, None, None]
+    out = np.zeros(context.shape[:2] + (gap,) + context.shape[3:], np.float32)
+    for j in range(near.shape[1]):
+        c = near[:, j]
+        start = (context[:, :, -1] - c[:, :, n - 1])[:, :, None]
+        end = (keypose - c[:, :, -1])[:, :, None]
+        out += c[:, :, n:n + gap] + (1 - t) * start + t * end
+    return out / near.shape[1]
+
+
+def texture(bank: MotionBank, context, keypose, gap: int, sigma: float) -> np.ndarray:
+    """The nearest bank window's high-frequency joint-position band over the gap, faded in and out:
+    (B, 2, gap, J, 9), zero in the rotation channels."""
+    context = np.asarray(context, np.float32)
+    c = _nearest(bank, context, np.asarray(keypose, np.float32), gap, 1)[:, 0]
+    n = context.shape[2]
+    band = np.zeros(c.shape[:2] + (gap,) + c.shape[3:], np.float32)
+    band[..., :3] = (c[..., :3] - gaussian_lowpass(c[..., :3], sigma, 2))[:, :, n:n + gap]
+    fade = np.ones(gap, np.float32)
+    m = min(FADE, gap // 2)
+    ramp = np.arange(1, m + 1, dtype=np.float32) / (m + 1)
+    if m:
+        fade[:m], fade[gap - m:] = ramp, ramp[::-1]
+    return band * fade[None, None, :, None, None]
+
+
+def foot_indices(skeleton) -> tuple:
+    """The skeleton's foot joints (:meth:`~inbetween_jax.data.skeleton.Skeleton.foot_joints`), or () when there
+    is no skeleton or its feet are not found by name (texture then reaches the feet too)."""
+    try:
+        return tuple(sorted(set(skeleton.foot_joints()))) if skeleton is not None else ()
+    except KeyError:
+        return ()
+
+
+def bank_enabled(model_cfg) -> bool:
+    """Whether a model config asks for the bank at inference."""
+    return model_cfg.bank_k > 0 and model_cfg.bank_weight > 0 or model_cfg.texture_sigma > 0
+
+
+def apply_bank(bank: MotionBank, model_cfg, frames, context, keypose, gaps, feet=()) -> np.ndarray:
+    """Rollouts with the bank's in-between blended in and texture added over each window's gap.
+
+    frames (S, B, 2, F, J, 9) rollouts in key space (model units, y up); context (B, 2, n_input, J, 9); keypose
+    (B, 2, J, 9); gaps (B,) the gap each rollout aims at; feet: foot joint indices, whose texture is faded out
+    near the floor: its weight is 0 where the foot, with or without texture, is at or below the foot-skating
+    height H = 2.5 cm and 1 from 2 H, so a foot the rollout holds above H is never textured below it.  Frames past a window's gap are left as they are.
+    -> (S, B, 2, F, J, 9) float32."""
+    out = np.array(frames, np.float32)
+    gaps = np.asarray(gaps).astype(int)
+    w, k = float(model_cfg.bank_weight), int(model_cfg.bank_k)
+    for g in np.unique(gaps):
+        sel = np.flatnonzero(gaps == g)
+        n = min(int(g), out.shape[3])
+        if n <= 0:
+            continue
+        ctx, kp = context[sel], keypose[sel]
+        if k > 0 and w > 0:
+            near = knn_inbetween(bank, ctx, kp, int(g), k)[:, :, :n]
+            out[:, sel, :, :n] = (1 - w) * out[:, sel, :, :n] + w * near[None]
+        if model_cfg.texture_sigma > 0:
+            add = np.repeat(model_cfg.texture_gain * texture(bank, ctx, kp, int(g), model_cfg.texture_sigma)[None,
+                            :, :, :n], out.shape[0], 0)                     # (S, b, 2, n, J, 9)
+            if len(feet):
+                foot, floor = list(feet), SKATING_HEIGHT_CM * bank.pos_scale
+                h = out[:, sel, :, :n][..., foot, 1]
+                low = np.minimum(h, h + add[..., foot, 1]) / floor                  # the lower of base and textured
+                add[..., foot, :3] *= np.clip(low - 1.0, 0.0, 1.0)[..., None]
+            out[:, sel, :, :n] += add
+    return out
