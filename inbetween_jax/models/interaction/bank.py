@@ -14,9 +14,9 @@ each character in its keyframe space as :func:`~.features.keyframe_sample` build
 * :func:`texture` -- motion texturing (Pullen & Bregler 2002): the high-frequency band of the nearest window's
   joint positions (the window minus its Gaussian low-pass of ``texture_sigma`` frames) is added to the
   in-between, faded in and out over :data:`FADE` frames at either end so the context and keypose stay continuous.
-  Rotations are left alone, and so are feet near the floor (:func:`apply_bank`).  The network's rollouts are smooth (they move at about 60 % of the capture's joint
-  speed); the interaction classifier tells them from capture by this band (docs/results/interaction.md, tenth
-  round).
+  Rotations are left alone, and so are feet near the floor (:func:`apply_bank`).  The network's rollouts are smooth
+  (they move at about 60 % of the capture's joint speed); the interaction classifier tells them from capture by this
+  band (docs/results/interaction.md, tenth round).
 """
 from __future__ import annotations
 
@@ -216,8 +216,8 @@ def apply_bank(bank: MotionBank, model_cfg, frames, context, keypose, gaps, feet
     frames (S, B, 2, F, J, 9) rollouts in key space (model units, y up); context (B, 2, n_input, J, 9); keypose
     (B, 2, J, 9); gaps (B,) the gap each rollout aims at; feet: foot joint indices, whose texture is faded out
     near the floor: its weight is 0 where the foot, with or without texture, is at or below the foot-skating
-    height H = 2.5 cm and 1 from 2 H, so a foot the rollout holds above H is never textured below it.  Frames past a window's gap are left as they are.
-    -> (S, B, 2, F, J, 9) float32."""
+    height H = 2.5 cm and 1 from 2 H, so a foot the rollout holds above H is never textured below it.  Frames
+    past a window's gap are left as they are.  -> (S, B, 2, F, J, 9) float32."""
     out = np.array(frames, np.float32)
     gaps = np.asarray(gaps).astype(int)
     w, k = float(model_cfg.bank_weight), int(model_cfg.bank_k)
@@ -231,8 +231,8 @@ def apply_bank(bank: MotionBank, model_cfg, frames, context, keypose, gaps, feet
             near = knn_inbetween(bank, ctx, kp, int(g), k)[:, :, :n]
             out[:, sel, :, :n] = (1 - w) * out[:, sel, :, :n] + w * near[None]
         if model_cfg.texture_sigma > 0:
-            add = np.repeat(model_cfg.texture_gain * texture(bank, ctx, kp, int(g), model_cfg.texture_sigma)[None,
-                            :, :, :n], out.shape[0], 0)                     # (S, b, 2, n, J, 9)
+            band = model_cfg.texture_gain * texture(bank, ctx, kp, int(g), model_cfg.texture_sigma)[:, :, :n]
+            add = np.repeat(band[None], out.shape[0], 0)                         # (S, b, 2, n, J, 9)
             if len(feet):
                 foot, floor = list(feet), SKATING_HEIGHT_CM * bank.pos_scale
                 h = out[:, sel, :, :n][..., foot, 1]
