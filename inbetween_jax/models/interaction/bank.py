@@ -168,7 +168,19 @@ def knn_inbetween(bank: MotionBank, context, keypose, gap: int, k: int) -> np.nd
 
     context (B, 2, n_input, J, 9), keypose (B, 2, J, 9) in key space (model units) -> (B, 2, gap, J, 9)."""
     context, keypose = np.asarray(context, np.float32), np.asarray(keypose, np.float32)
-    near = _nearest(bank, context, keypose, gap, k)
+    return _warped_mean(_nearest(bank, context, keypose, gap, k), context, keypose, gap)
+
+
+def texture(bank: MotionBank, context, keypose, gap: int, sigma: float) -> np.ndarray:
+    """The nearest bank window's high-frequency joint-position band over the gap, faded in and out:
+    (B, 2, gap, J, 9), zero in the rotation channels."""
+    context = np.asarray(context, np.float32)
+    nearest = _nearest(bank, context, np.asarray(keypose, np.float32), gap, 1)[:, 0]
+    return _faded_band(nearest, context.shape[2], gap, sigma)
+
+
+def _warped_mean(near, context, keypose, gap: int) -> np.ndarray:
+    """near (B, k, 2, n + gap + 1, J, 9) bank windows -> the mean of them warped onto the query's ends."""
     n = context.shape[2]
     t = (np.arange(1, gap + 1, dtype=np.float32) / (gap + 1))[None, None, :, None, None]
     out = np.zeros(context.shape[:2] + (gap,) + context.shape[3:], np.float32)
@@ -180,12 +192,9 @@ def knn_inbetween(bank: MotionBank, context, keypose, gap: int, k: int) -> np.nd
     return out / near.shape[1]
 
 
-def texture(bank: MotionBank, context, keypose, gap: int, sigma: float) -> np.ndarray:
-    """The nearest bank window's high-frequency joint-position band over the gap, faded in and out:
-    (B, 2, gap, J, 9), zero in the rotation channels."""
-    context = np.asarray(context, np.float32)
-    c = _nearest(bank, context, np.asarray(keypose, np.float32), gap, 1)[:, 0]
-    n = context.shape[2]
+def _faded_band(c, n: int, gap: int, sigma: float) -> np.ndarray:
+    """c (B, 2, n + gap + 1, J, 9) one bank window per query -> its position band above a Gaussian low-pass over
+    the gap, faded in and out over :data:`FADE` frames; rotation channels zero."""
     band = np.zeros(c.shape[:2] + (gap,) + c.shape[3:], np.float32)
     band[..., :3] = (c[..., :3] - gaussian_lowpass(c[..., :3], sigma, 2))[:, :, n:n + gap]
     fade = np.ones(gap, np.float32)
@@ -221,17 +230,21 @@ def apply_bank(bank: MotionBank, model_cfg, frames, context, keypose, gaps, feet
     out = np.array(frames, np.float32)
     gaps = np.asarray(gaps).astype(int)
     w, k = float(model_cfg.bank_weight), int(model_cfg.bank_k)
+    blend, textured = k > 0 and w > 0, model_cfg.texture_sigma > 0
+    context, keypose = np.asarray(context, np.float32), np.asarray(keypose, np.float32)
     for g in np.unique(gaps):
         sel = np.flatnonzero(gaps == g)
         n = min(int(g), out.shape[3])
-        if n <= 0:
+        if n <= 0 or not (blend or textured):
             continue
         ctx, kp = context[sel], keypose[sel]
-        if k > 0 and w > 0:
-            near = knn_inbetween(bank, ctx, kp, int(g), k)[:, :, :n]
-            out[:, sel, :, :n] = (1 - w) * out[:, sel, :, :n] + w * near[None]
-        if model_cfg.texture_sigma > 0:
-            band = model_cfg.texture_gain * texture(bank, ctx, kp, int(g), model_cfg.texture_sigma)[:, :, :n]
+        near = _nearest(bank, ctx, kp, int(g), k if blend else 1)         # one search serves both (nearest first)
+        if blend:
+            mean = _warped_mean(near, ctx, kp, int(g))[:, :, :n]
+            out[:, sel, :, :n] = (1 - w) * out[:, sel, :, :n] + w * mean[None]
+        if textured:
+            band = model_cfg.texture_gain * _faded_band(near[:, 0], ctx.shape[2], int(g),
+                                                        model_cfg.texture_sigma)[:, :, :n]
             add = np.repeat(band[None], out.shape[0], 0)                         # (S, b, 2, n, J, 9)
             if len(feet):
                 foot, floor = list(feet), SKATING_HEIGHT_CM * bank.pos_scale
