@@ -59,3 +59,36 @@ def test_ctrl_c_exits_promptly_with_one_line(kind, tmp_path):
     if kind == "preview":
         out_dir = tmp_path / "out"
         assert not out_dir.exists() or not [f for f in os.listdir(out_dir) if f.endswith((".png", ".gif"))]
+
+
+def test_interrupt_removes_a_temp_folder_still_being_written(tmp_path):
+    """The watcher removes a temporary folder while the main thread may still be writing files into it: the
+    folder must be gone afterwards, and the writer's next file must fail rather than recreate it."""
+    import threading
+
+    from inbetween_jax.cli import interrupt
+    path = interrupt.temp_dir(".out.tmp-", str(tmp_path))
+    assert os.path.isdir(path) and path in interrupt._temp
+    stop, failed = threading.Event(), []
+
+    def writer():
+        i = 0
+        while not stop.is_set():
+            try:
+                with open(os.path.join(path, f"f{i}.bin"), "wb") as f:
+                    f.write(b"x" * 4096)
+            except OSError:
+                failed.append(i)
+                return
+            i += 1
+
+    t = threading.Thread(target=writer)
+    t.start()
+    time.sleep(0.05)
+    interrupt._remove(path)
+    time.sleep(0.05)
+    stop.set()
+    t.join()
+    interrupt.untrack(path)
+    assert failed, "the writer never noticed the folder was gone"
+    assert os.listdir(tmp_path) == []

@@ -45,7 +45,8 @@ def _one_line(msg: str) -> str:
 
 
 def fail(msg: str) -> int:
-    print(f"inbetween: error: {_one_line(msg)}", file=sys.stderr)
+    from inbetween_jax.cli import interrupt
+    interrupt.say(f"inbetween: error: {_one_line(msg)}")
     return 2
 
 
@@ -77,8 +78,8 @@ def main(argv=None) -> int:
     except Exception as e:                        # a bug, not the user's fault: one line unless --traceback
         if traceback:
             raise
-        print(f"inbetween: internal error: {type(e).__name__}: {_one_line(str(e))} (rerun with --traceback)",
-              file=sys.stderr)
+        from inbetween_jax.cli import interrupt
+        interrupt.say(f"inbetween: internal error: {type(e).__name__}: {_one_line(str(e))} (rerun with --traceback)")
         return 1
 
 

@@ -3,8 +3,10 @@
 Python runs a SIGINT handler only between bytecodes, so an interrupt that arrives during a long XLA compile or
 a matplotlib render waits until that call returns (over a minute has been seen).  Instead, SIGINT is blocked in
 every thread and a watcher thread waits for it with ``sigwait``: it wakes up as soon as the signal arrives (the
-long calls release the GIL), removes the temporary folders registered with :func:`track`, prints one line and
-ends the process with status 130.  Outputs are only moved into place inside :func:`critical` sections, which an
+long calls release the GIL), removes the temporary folders made with :func:`temp_dir`, prints one line and
+ends the process with status 130.  The main thread keeps running meanwhile, so each folder is first renamed
+aside (no new file can land in it) and then removed, and the main thread's own error lines (:func:`say`) wait
+for the exit instead of following the interrupt's line.  Outputs are only moved into place inside :func:`critical` sections, which an
 interrupt lets finish first, so nothing is left half-written.
 """
 from __future__ import annotations
@@ -14,18 +16,29 @@ import os
 import shutil
 import signal
 import sys
+import tempfile
 import threading
 
-__all__ = ["install", "track", "untrack", "critical"]
+__all__ = ["install", "temp_dir", "track", "untrack", "critical", "say"]
 
 _lock = threading.RLock()
 _temp: set[str] = set()
 _state = {"installed": False, "pending": False, "depth": 0, "message": "interrupted"}
 
 
+def _remove(path: str) -> None:
+    doomed = f"{path}.removing"
+    try:
+        os.rename(path, doomed)          # the main thread's next write into ``path`` fails instead of landing
+    except OSError:
+        doomed = path
+    shutil.rmtree(doomed, ignore_errors=True)
+
+
 def _exit_now() -> None:
+    """Called with ``_lock`` held, which it never releases: :func:`say` in other threads waits for the exit."""
     for path in list(_temp):
-        shutil.rmtree(path, ignore_errors=True)
+        _remove(path)
     try:
         sys.stderr.write(f"inbetween: {_state['message']}\n")
         sys.stderr.flush()
@@ -53,6 +66,21 @@ def install(message: str = "interrupted") -> None:
     signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     threading.Thread(target=_watch, name="inbetween-sigint", daemon=True).start()
     _state["installed"] = True
+
+
+def temp_dir(prefix: str, parent: str) -> str:
+    """A new temporary folder in ``parent``, removed if the process is interrupted; made and registered under
+    the lock, so an interrupt cannot fall between the two."""
+    with _lock:
+        path = tempfile.mkdtemp(prefix=prefix, dir=parent)
+        _temp.add(path)
+    return path
+
+
+def say(line: str) -> None:
+    """Print one line to stderr, unless an interrupt is ending the process (then wait for that exit)."""
+    with _lock:
+        print(line, file=sys.stderr)
 
 
 def track(path: str) -> None:

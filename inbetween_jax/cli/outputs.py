@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import os
 import shutil
-import tempfile
 
 from inbetween_jax.cli import interrupt
 
@@ -35,8 +34,7 @@ def write_outputs(out: str, files: dict, progress=None) -> None:
     out = os.path.abspath(out)
     parent = out if os.path.isdir(out) else os.path.dirname(out)
     os.makedirs(parent, exist_ok=True)
-    tmp = tempfile.mkdtemp(prefix=f".{os.path.basename(out)}.tmp-", dir=parent)
-    interrupt.track(tmp)
+    tmp = interrupt.temp_dir(f".{os.path.basename(out)}.tmp-", parent)
     mask = _umask()
     try:
         for i, (name, writer) in enumerate(files.items()):
