@@ -4,10 +4,11 @@ Python runs a SIGINT handler only between bytecodes, so an interrupt that arrive
 a matplotlib render waits until that call returns (over a minute has been seen).  Instead, SIGINT is blocked in
 every thread and a watcher thread waits for it with ``sigwait``: it wakes up as soon as the signal arrives (the
 long calls release the GIL), removes the temporary folders made with :func:`temp_dir`, prints one line and
-ends the process with status 130.  The main thread keeps running meanwhile, so each folder is first renamed
-aside (no new file can land in it) and then removed, and the main thread's own error lines (:func:`say`) wait
-for the exit instead of following the interrupt's line.  Outputs are only moved into place inside :func:`critical` sections, which an
-interrupt lets finish first, so nothing is left half-written.
+ends the process with status 130.  The main thread keeps running meanwhile, so each folder is first
+renamed aside (no new file can land in it) and then removed, and the main thread's own error lines
+(:func:`say`) wait for the exit instead of following the interrupt's line.  Outputs are only moved into
+place inside :func:`critical` sections, which an interrupt lets finish first, so nothing is left
+half-written.
 """
 from __future__ import annotations
 
