@@ -38,6 +38,12 @@ frame before each start keyframe; its one-keyframe (Table-1) rows see a zero vel
 the model trained on it scored worse on the CMU validation windows than the one trained on the plain cubic
 (docs/results/scvae.md), so the preset keeps the plain cubic.
 
+Inference only, off in every preset: the transition bank (:mod:`inbetween_jax.models.scvae.bank`;
+``model.bank_k`` / ``model.bank_tau`` / ``model.bank_weight``) blends the samples with the warped mean of the
+k nearest training transitions, read from ``bank.npz`` in the run folder (``experiments/build_bank.py`` writes
+it and sets the switches).  It helps where the training motion covers the test motion (LaFAN1) and hurts on
+the CMU test subjects (docs/results/scvae.md, "Transition bank"), so the shipped CMU weights leave it off.
+
 ``model.deferred_wgrad`` is a speed switch only (the largest weight gradients as one matmul after the scan, see
 :mod:`inbetween_jax.models.scvae.deferred_grads`); it does not change the losses.
 """
@@ -86,6 +92,9 @@ class ModelConfig:
     base_velocity: bool = False    # residual base continues the start's velocity (Hermite, needs the past frame)
     base_damping: float = 0.0      # ... with that offset faded by exp(-base_damping * t) (per frame; 0: plain cubic)
     search: int = 1                # test-time latent pair search: candidates per sample (paper: "N pairs")
+    bank_k: int = 0                # inference: blend in the mean of the k nearest bank transitions (0: off; .bank)
+    bank_weight: float = 0.0       # inference: its weight (0: the network alone; 1: the bank alone)
+    bank_tau: float = 0.0          # inference: > 0 weights the k by exp(-(d - d1) / (tau d1)); 0: uniform
 
     @property
     def uses_past_frame(self) -> bool:

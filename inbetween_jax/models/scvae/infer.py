@@ -13,15 +13,17 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import os
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from inbetween_jax.models.scvae import model as M
+from inbetween_jax.models.scvae.bank import BANK_FILE, TransitionBank, bank_enabled, blend, knn_transition
 from inbetween_jax.models.scvae.losses import fk_positions
 
-__all__ = ["MIN_FRAMES", "Trained", "load", "infill", "frame_range", "infill_between",
+__all__ = ["MIN_FRAMES", "Trained", "load", "load_bank", "infill", "frame_range", "infill_between",
            "keyframe_contacts", "sample_transitions"]
 
 MIN_FRAMES = 3          # L = frames + 1 >= 4 frames between keyframes (model.rollout)
@@ -35,6 +37,7 @@ class Trained:
     step: int
     skeleton: object
     extra: dict
+    bank: TransitionBank | None = None      # transition bank (``bank.npz`` in the run folder) when the config uses one
 
     @property
     def params(self) -> dict:
@@ -69,7 +72,35 @@ def load(run) -> Trained:
         raise RunError(f"{run.run_dir}: run.json records no skeleton (num_joints unknown)")
     init_fn = make_init_fn(cfg, stats_like(int(num_joints)), int(num_joints))
     state = restore_state(run, jax.eval_shape(init_fn, jax.random.key(0)))
-    return Trained(cfg, state, int(run.step), skeleton, dict(run.extra, num_joints=int(num_joints)))
+    return Trained(cfg, state, int(run.step), skeleton, dict(run.extra, num_joints=int(num_joints)),
+                   load_bank(run.run_dir, cfg.model, int(num_joints)))
+
+
+def load_bank(run_dir: str, model_cfg, num_joints: int) -> TransitionBank | None:
+    """The run folder's transition bank when ``model_cfg`` turns it on (:func:`.bank.bank_enabled`), else None.
+
+    Raises:
+        RunError: a negative or out-of-range setting, or the bank file missing, unreadable or on another skeleton.
+    """
+    from inbetween_jax.errors import UserError
+    from inbetween_jax.train.run import RunError
+    m = model_cfg
+    if m.bank_k < 0 or not 0 <= m.bank_weight <= 1 or m.bank_tau < 0:
+        raise RunError(f"{run_dir}: model.bank_k and model.bank_tau must not be negative and model.bank_weight must "
+                       f"lie in 0..1 (got {m.bank_k}, {m.bank_tau}, {m.bank_weight})")
+    if not bank_enabled(m):
+        return None
+    path = os.path.join(run_dir, BANK_FILE)
+    if not os.path.isfile(path):
+        raise RunError(f"{run_dir}: model.bank_k needs a transition bank, and {BANK_FILE} is missing (write one "
+                       f"with experiments/build_bank.py)")
+    try:
+        bank = TransitionBank.load(path)
+    except UserError as e:
+        raise RunError(str(e)) from None
+    if bank.num_joints != num_joints:
+        raise RunError(f"{path}: the bank has {bank.num_joints} joints, the model {num_joints}")
+    return bank
 
 
 def frame_range(cfg) -> tuple:
@@ -93,10 +124,12 @@ def _sample_chunk(params, stats, start, target, keys, cfg, max_length, parents):
 
 
 def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_samples: int, seed: int = 0,
-                       chunk: int = 128, velocity: bool = False) -> dict:
+                       chunk: int = 128, velocity: bool = False, bank: TransitionBank | None = None) -> dict:
     """Transitions between frame ``n_past - 1`` and frame ``n_past + n_trans`` of every window.
     ``velocity`` (models trained with ``start_velocity`` / ``base_velocity``, protocols with more than one past
     frame): the start keyframe carries frame ``n_past - 2`` (root displacement ``v``, local quaternions ``qp``).
+    ``bank`` (with ``cfg.bank_k`` / ``cfg.bank_weight`` on): the samples are blended with the bank's
+    transition (:func:`.bank.blend`; mid_f / mid_b stay the network's).
 
     cfg: ModelConfig; state: train state (``params``, ``stats``).
     Returns q (S, B, n_trans, J, 4), r (S, B, n_trans, 3) and, for the bi-directional model, mid_f / mid_b
@@ -117,7 +150,13 @@ def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_sampl
         target = jax.tree.map(jnp.asarray, target)
         parts.append(jax.device_get(_sample_chunk(state["params"], state["stats"], start, target, keys, cfg,
                                                   length, tuple(windows.parents))))
-    return {k: np.concatenate([p[k] for p in parts], axis=1) for k in parts[0]}
+    out = {k: np.concatenate([p[k] for p in parts], axis=1) for k in parts[0]}
+    if bank is not None and bank_enabled(cfg):
+        kq, kr, _ = knn_transition(bank, windows.local_quats[:, k0], windows.root_pos[:, k0],
+                                   windows.local_quats[:, k1], windows.root_pos[:, k1], n_trans, cfg.bank_k,
+                                   cfg.bank_tau)
+        out["q"], out["r"] = blend(out["q"], out["r"], kq, kr, cfg.bank_weight)
+    return out
 
 
 # ----------------------------------------------------------------------------- users' keyframes
@@ -184,6 +223,11 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
     q, r = np.asarray(q, np.float64)[:, :frames + 2], np.asarray(r, np.float64)[:, :frames + 2]
     q[:, :, 0] = quat_mul(np.broadcast_to(yaw, q[:, :, 0].shape), q[:, :, 0])
     r = quat_rotate(np.broadcast_to(yaw, r.shape[:-1] + (4,)), r) + shift
+    m = trained.cfg.model
+    if trained.bank is not None and bank_enabled(m):
+        kq, kr, _ = knn_transition(trained.bank, qs[None], roots[:1], qe[None], roots[1:], frames, m.bank_k, m.bank_tau)
+        mid_q, mid_r = blend(q[:, None, 1:-1], r[:, None, 1:-1], kq, kr, m.bank_weight)
+        q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
     q[:, 0], r[:, 0], q[:, -1], r[:, -1] = qs, roots[0], qe, roots[1]                 # exact keyframes
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     return {"q": quat_fix_sign_np(q, axis=1), "r": r}

@@ -1,0 +1,243 @@
+"""A transition bank of training motion: nearest-neighbour in-betweens blended with the S-CVAE's samples.
+
+Beyond the paper; inference only (the trained network is the same with or without), off unless a run's config
+turns it on (``model.bank_k`` > 0, ``model.bank_weight``, ``model.bank_tau``).  The bank holds the training
+clips' local rotations and root positions (``bank.npz`` in a run or shipped weights folder, written by
+``experiments/build_bank.py``).
+
+:func:`knn_transition` finds, for two keyframes ``length + 1`` frames apart, the ``k`` training transitions of the
+same length whose two keyframes lie nearest to the query's: every joint's position at both keyframes, each pair
+in the space of its start keyframe (root on the origin in the floor plane, facing +Z), so the match sees the
+poses and where the target lies relative to the start.  Each is warped onto the query's keyframes (Witkin &
+Popovic 1995: per joint, the rotation offset at the two ends slerped over the transition; the root's position
+offset lerped) and the ``k`` are averaged, uniformly (``tau`` 0) or with weights ``exp(-(d - d_1) / (tau d_1))``
+of their squared match distance ``d`` (``d_1`` the nearest's).  :func:`blend` mixes that with the network's
+samples (``bank_weight``: 1 keeps the bank's transition only).  Why: at the CPU budget the S-CVAE stays at
+Slerp's level (docs/results/scvae.md), while warped real transitions carry what the two keyframes imply about
+the motion between them.
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+
+import numpy as np
+
+from inbetween_jax.errors import UserError
+from inbetween_jax.geometry.kinematics import forward_kinematics, local_positions
+from inbetween_jax.geometry.quaternion import quat_from_axis_angle, quat_inv, quat_mul, quat_normalize, quat_rotate
+from inbetween_jax.geometry.quaternion import quat_fix_sign_np, quat_slerp
+
+__all__ = ["BANK_FILE", "SWITCHES", "TransitionBank", "keyframe_space", "knn_transition", "blend", "bank_enabled"]
+
+BANK_FILE = "bank.npz"
+SWITCHES = ("model.bank_k", "model.bank_weight", "model.bank_tau")     # inference only
+CACHED_LENGTHS = 8        # transition lengths whose match features a bank keeps (about 30 MB each for CMU)
+QUERY_CHUNK = 64          # queries warped at once (memory: chunk x k x frames x joints x 4)
+
+
+@dataclasses.dataclass
+class TransitionBank:
+    """Training clips for retrieval, concatenated: local_quats (F, J, 4) float32, root_pos (F, 3) float32,
+    clip_starts (C + 1,) the first frame of each clip and F; names (C,); offsets (J, 3) and parents: the skeleton
+    (FK of the match features); forward_axis (3,): the root's local facing axis; stride: frames between bank
+    transitions.  Match features are cached per transition length (:meth:`index`)."""
+    local_quats: np.ndarray
+    root_pos: np.ndarray
+    clip_starts: np.ndarray
+    names: tuple
+    offsets: np.ndarray
+    parents: tuple
+    forward_axis: np.ndarray
+    stride: int = 2
+    _cache: dict = dataclasses.field(default_factory=dict, repr=False, compare=False)
+
+    @classmethod
+    def from_motions(cls, motions, forward_axis, stride: int = 2) -> "TransitionBank":
+        """A bank of :class:`~inbetween_jax.data.Motion` s on one skeleton (and one frame rate)."""
+        if not motions:
+            raise UserError("transition bank: no training motions to build it from")
+        skel = motions[0].skeleton
+        lens = [m.num_frames for m in motions]
+        return cls(np.concatenate([m.local_quats for m in motions]).astype(np.float32),
+                   np.concatenate([m.root_pos for m in motions]).astype(np.float32),
+                   np.concatenate([[0], np.cumsum(lens)]).astype(np.int64),
+                   tuple(str(m.source).rsplit("/", 1)[-1] for m in motions),
+                   np.asarray(skel.offsets, np.float64), tuple(int(p) for p in skel.parents),
+                   np.asarray(forward_axis, np.float64), int(stride))
+
+    @property
+    def num_frames(self) -> int:
+        return int(self.clip_starts[-1])
+
+    @property
+    def num_joints(self) -> int:
+        return int(self.local_quats.shape[1])
+
+    def save(self, path: str) -> None:
+        """Write ``path`` (npz; rotations as float16) atomically."""
+        tmp = path + ".tmp.npz"
+        np.savez_compressed(tmp, local_quats=self.local_quats.astype(np.float16), root_pos=self.root_pos,
+                            clip_starts=self.clip_starts, names=np.asarray(self.names), offsets=self.offsets,
+                            parents=np.asarray(self.parents, np.int64), forward_axis=self.forward_axis,
+                            stride=np.int64(self.stride))
+        os.replace(tmp, path)
+
+    @classmethod
+    def load(cls, path: str) -> "TransitionBank":
+        """Read a bank written by :meth:`save`.  Raises UserError (one line) on a missing or malformed file."""
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                bank = cls(np.asarray(z["local_quats"], np.float32), np.asarray(z["root_pos"], np.float32),
+                           np.asarray(z["clip_starts"], np.int64), tuple(str(n) for n in z["names"]),
+                           np.asarray(z["offsets"], np.float64), tuple(int(p) for p in z["parents"]),
+                           np.asarray(z["forward_axis"], np.float64), int(z["stride"]))
+        except (OSError, KeyError, ValueError) as e:
+            raise UserError(f"{path}: not a readable transition bank ({e})") from None
+        f, j = bank.local_quats.shape[:2] if bank.local_quats.ndim == 3 else (-1, -1)
+        if (bank.local_quats.ndim != 3 or bank.local_quats.shape[-1] != 4 or bank.root_pos.shape != (f, 3)
+                or bank.offsets.shape != (j, 3) or len(bank.parents) != j or bank.clip_starts[-1] != f
+                or not np.all(np.isfinite(bank.local_quats)) or bank.stride < 1):
+            raise UserError(f"{path}: not a transition bank (expected rotations (F, J, 4), roots (F, 3) and a "
+                            f"J-joint skeleton)")
+        norm = np.linalg.norm(bank.local_quats, axis=-1, keepdims=True)
+        if norm.size and norm.min() < 0.5:
+            raise UserError(f"{path}: not a transition bank (rotations are not unit quaternions)")
+        bank.local_quats = bank.local_quats / norm                      # float16 storage
+        return bank
+
+    def index(self, length: int):
+        """``(frames, yaw, xz, feats)`` of every bank transition of ``length`` in-between frames (stride
+        :attr:`stride`): its start keyframe's index (N,), facing (N,) and floor position (N, 2), and its match
+        features (N, 2 J 3) float32; cached for the :data:`CACHED_LENGTHS` lengths used last."""
+        if length in self._cache:
+            self._cache[length] = self._cache.pop(length)              # most recently used last
+            return self._cache[length]
+        while len(self._cache) >= CACHED_LENGTHS:
+            self._cache.pop(next(iter(self._cache)))
+        bounds = zip(self.clip_starts[:-1], self.clip_starts[1:])
+        starts = [np.arange(a, b - length - 1, self.stride) for a, b in bounds]
+        frames = np.concatenate(starts).astype(np.int64) if starts else np.zeros(0, np.int64)
+        if len(frames) == 0:
+            raise UserError(f"transition bank: no clip holds a {length}-frame transition")
+        keys_q = np.stack([self.local_quats[frames], self.local_quats[frames + length + 1]], 1).astype(np.float64)
+        keys_r = np.stack([self.root_pos[frames], self.root_pos[frames + length + 1]], 1).astype(np.float64)
+        yaw, xz = keyframe_space(keys_q[:, 0, 0], keys_r[:, 0], self.forward_axis)
+        feats = self._features(*_to_space(keys_q, keys_r, yaw, xz)).astype(np.float32)
+        self._cache[length] = (frames, yaw, xz, feats)
+        return self._cache[length]
+
+    def _features(self, q, r):
+        """q (N, 2, J, 4), r (N, 2, 3) keyframe pairs in their start's space -> (N, 2 J 3) joint positions."""
+        _, gp = forward_kinematics(q, local_positions(r, self.offsets), self.parents)
+        return gp.reshape(len(gp), -1)
+
+
+def keyframe_space(q_root, root, forward_axis):
+    """Facing (yaw about +Y, 0 = +Z) and floor position of frames: q_root (N, 4), root (N, 3) -> (N,), (N, 2)."""
+    f = quat_rotate(q_root, np.broadcast_to(np.asarray(forward_axis, np.float64), q_root.shape[:-1] + (3,)))
+    return np.arctan2(f[..., 0], f[..., 2]), np.asarray(root)[..., [0, 2]]
+
+
+def _yaw_quat(yaw):
+    up = np.zeros(np.shape(yaw) + (3,))
+    up[..., 1] = 1.0
+    return quat_from_axis_angle(up, yaw)
+
+
+def _to_space(q, r, yaw, xz):
+    """Frames q (N, T, J, 4), r (N, T, 3) into the space facing ``yaw`` (N,) at floor position ``xz`` (N, 2)."""
+    inv = _yaw_quat(-yaw)[:, None]
+    q = q.copy()
+    q[:, :, 0] = quat_mul(np.broadcast_to(inv, q[:, :, 0].shape), q[:, :, 0])
+    r = r - np.stack([xz[:, 0], np.zeros(len(xz)), xz[:, 1]], -1)[:, None]
+    return q, quat_rotate(np.broadcast_to(inv, r.shape[:-1] + (4,)), r)
+
+
+def _from_space(q, r, yaw, xz):
+    """Inverse of :func:`_to_space`."""
+    rot = _yaw_quat(yaw)[:, None]
+    q = q.copy()
+    q[:, :, 0] = quat_mul(np.broadcast_to(rot, q[:, :, 0].shape), q[:, :, 0])
+    r = quat_rotate(np.broadcast_to(rot, r.shape[:-1] + (4,)), r)
+    return q, r + np.stack([xz[:, 0], np.zeros(len(xz)), xz[:, 1]], -1)[:, None]
+
+
+def _align(q, ref):
+    """Flip quaternions q into the hemisphere of ref (broadcast)."""
+    return np.where(np.sum(q * ref, -1, keepdims=True) < 0, -q, q)
+
+
+def _warped_mean(cand_q, cand_r, key_q, key_r, weights):
+    """Warp candidates onto the keyframes and average them.
+
+    cand_q (B, k, L + 2, J, 4), cand_r (B, k, L + 2, 3): the candidates' frames, keyframes included, in the
+    query's space; key_q (B, 2, J, 4), key_r (B, 2, 3): the query's two keyframes; weights (B, k) summing to 1.
+    Returns (B, L + 2, J, 4), (B, L + 2, 3): the warped mean, equal to the query's keyframes at both ends.
+    """
+    n = cand_q.shape[2]
+    t = np.arange(n) / (n - 1)
+    d0 = quat_mul(key_q[:, None, 0], quat_inv(cand_q[:, :, 0]))                   # (B, k, J, 4) offsets
+    d1 = _align(quat_mul(key_q[:, None, 1], quat_inv(cand_q[:, :, -1])), d0)
+    warp_q = quat_mul(quat_slerp(d0[:, :, None], d1[:, :, None], t[None, None, :, None]), cand_q)
+    o0, o1 = key_r[:, None, 0] - cand_r[:, :, 0], key_r[:, None, 1] - cand_r[:, :, -1]   # (B, k, 3)
+    warp_r = cand_r + o0[:, :, None] + t[None, None, :, None] * (o1 - o0)[:, :, None]
+    warp_q = _align(warp_q, warp_q[:, :1])
+    w = weights[:, :, None, None]
+    return quat_normalize((warp_q * w[..., None]).sum(1)), (warp_r * w).sum(1)
+
+
+def knn_transition(bank: TransitionBank, key_q, key_r, tgt_q, tgt_r, length: int, k: int, tau: float = 0.0):
+    """The bank's in-between of ``length`` frames between keyframes ``key`` and ``tgt`` (``length + 1`` apart).
+
+    key_q, tgt_q: (B, J, 4) local quaternions; key_r, tgt_r: (B, 3) root positions, any world space.
+    Returns q (B, length, J, 4), r (B, length, 3) float64 in the same space (signs continuous from the start
+    keyframe's), and the nearest match's distance (B,): root mean square over the joints of both keyframes, in
+    the data's units.
+    """
+    frames, yaw_b, xz_b, feats = bank.index(length)
+    feats = feats.astype(np.float64)
+    k = int(min(k, len(frames)))
+    key_q2 = np.stack([key_q, tgt_q], 1).astype(np.float64)
+    key_r2 = np.stack([key_r, tgt_r], 1).astype(np.float64)
+    out_q, out_r, out_d = [], [], []
+    f2 = np.sum(feats ** 2, 1)
+    n = length + 2
+    for lo in range(0, len(key_q2), QUERY_CHUNK):
+        q2, r2 = key_q2[lo:lo + QUERY_CHUNK], key_r2[lo:lo + QUERY_CHUNK]
+        yaw, xz = keyframe_space(q2[:, 0, 0], r2[:, 0], bank.forward_axis)
+        sq, sr = _to_space(q2, r2, yaw, xz)
+        g = bank._features(sq, sr)
+        d2 = np.sum(g ** 2, 1)[:, None] - 2.0 * g @ feats.T + f2[None]
+        near = np.argpartition(d2, k - 1, axis=1)[:, :k] if k < d2.shape[1] else np.argsort(d2, 1)
+        dk = np.take_along_axis(d2, near, 1)
+        order = np.argsort(dk, 1)
+        near, dk = np.take_along_axis(near, order, 1), np.maximum(np.take_along_axis(dk, order, 1), 0.0)
+        if tau > 0:
+            w = np.exp(-(dk - dk[:, :1]) / (tau * np.maximum(dk[:, :1], 1e-9)))
+        else:
+            w = np.ones_like(dk)
+        w = w / w.sum(1, keepdims=True)
+        b = len(q2)
+        idx = frames[near][..., None] + np.arange(n)                                # (b, k, L + 2)
+        cq, cr = _to_space(bank.local_quats[idx].reshape(b * k, n, -1, 4).astype(np.float64),
+                           bank.root_pos[idx].reshape(b * k, n, 3).astype(np.float64), yaw_b[near].reshape(-1),
+                           xz_b[near].reshape(-1, 2))
+        mq, mr = _warped_mean(cq.reshape(b, k, n, -1, 4), cr.reshape(b, k, n, 3), sq, sr, w)
+        mq, mr = _from_space(mq, mr, yaw, xz)
+        mq[:, 0] = _align(mq[:, 0], q2[:, 0])             # the start keyframe's sign, then continuous in time
+        out_q.append(quat_fix_sign_np(mq, axis=1)[:, 1:-1])
+        out_r.append(mr[:, 1:-1])
+        out_d.append(np.sqrt(dk[:, 0] / (2 * bank.num_joints)))
+    return np.concatenate(out_q), np.concatenate(out_r), np.concatenate(out_d)
+
+
+def blend(q, r, bank_q, bank_r, weight: float):
+    """Mix samples q (S, B, L, J, 4), r (S, B, L, 3) with the bank's transition bank_q (B, L, J, 4),
+    bank_r (B, L, 3): slerp / lerp by ``weight`` (0: the samples, 1: the bank's)."""
+    q, r = np.asarray(q, np.float64), np.asarray(r, np.float64)
+    return quat_slerp(q, _align(np.asarray(bank_q, np.float64)[None], q), weight), r + weight * (bank_r[None] - r)
+
+
+def bank_enabled(model_cfg) -> bool:
+    return int(getattr(model_cfg, "bank_k", 0)) > 0 and float(getattr(model_cfg, "bank_weight", 0.0)) > 0

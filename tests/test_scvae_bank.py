@@ -1,0 +1,171 @@
+"""The S-CVAE's transition bank (:mod:`inbetween_jax.models.scvae.bank`) on real capture (the embedded CMU
+clips): a bank transition's own keyframes give it back exactly, in any world placement; the warp; the distance
+weights; the blend; the bank file and its errors; and the wiring into ``infer.sample_transitions``."""
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import shutil
+
+import numpy as np
+import pytest
+
+from inbetween_jax.data import load_dataset, load_motions
+from inbetween_jax.errors import UserError
+from inbetween_jax.geometry.quaternion import quat_from_axis_angle, quat_mul, quat_rotate
+from inbetween_jax.models.scvae.bank import BANK_FILE, TransitionBank, bank_enabled, blend, knn_transition
+from inbetween_jax.train.run import RunError
+
+L = 20
+
+
+@pytest.fixture(scope="module")
+def bank():
+    motions = load_motions("embedded", "train")
+    return TransitionBank.from_motions(motions, motions[0].skeleton.forward_axis(), stride=3)
+
+
+def _bank_transition(bank, i):
+    """Bank transition i of length L: its frames (L + 2, J, 4), (L + 2, 3) in the bank's world space."""
+    frames = bank.index(L)[0]
+    f = frames[i] + np.arange(L + 2)
+    return bank.local_quats[f].astype(np.float64), bank.root_pos[f].astype(np.float64)
+
+
+def _place(q, r, yaw, shift):
+    """The same frames turned by ``yaw`` about +Y and moved by ``shift`` (a rigid motion of the world)."""
+    rot = quat_from_axis_angle(np.array([0.0, 1.0, 0.0]), np.float64(yaw))
+    q = q.copy()
+    q[..., 0, :] = quat_mul(np.broadcast_to(rot, q[..., 0, :].shape), q[..., 0, :])
+    return q, quat_rotate(np.broadcast_to(rot, r.shape[:-1] + (4,)), r) + shift
+
+
+def _knn(bank, q, r, k=1, tau=0.0):
+    return knn_transition(bank, q[None, 0], r[None, 0], q[None, -1], r[None, -1], L, k, tau)
+
+
+def test_a_bank_transition_is_its_own_nearest_in_any_world_placement(bank):
+    n = len(bank.index(L)[0])
+    assert n > 100 and bank.index(L)[3].shape == (n, 2 * bank.num_joints * 3)
+    for i in (0, n // 2, n - 1):
+        q, r = _bank_transition(bank, i)
+        for yaw, shift in ((0.0, 0.0), (2.1, np.array([150.0, 0.0, -80.0]))):
+            pq, pr = _place(q, r, yaw, shift)
+            kq, kr, dist = _knn(bank, pq, pr)
+            assert dist[0] < 1e-3
+            np.testing.assert_allclose(kr[0], pr[1:-1], atol=1e-3)
+            dots = np.abs(np.sum(kq[0] * pq[1:-1], -1))
+            assert dots.min() > 1 - 1e-5                          # the same rotations
+            assert np.sum(kq[0, 0] * pq[0], -1).min() > 0         # signs follow the start keyframe
+
+
+def test_the_warp_moves_each_frame_by_its_share_of_the_target_shift(bank):
+    q, r = _bank_transition(bank, 40)
+    delta = np.array([0.3, -0.2, 0.4])               # a few mm: the nearest transition stays the same
+    moved = r.copy()
+    moved[-1] += delta
+    _, kr, dist = _knn(bank, q, moved)
+    share = (np.arange(1, L + 1) / (L + 1))[:, None]
+    np.testing.assert_allclose(kr[0], r[1:-1] + share * delta, atol=1e-3)
+    assert 0 < dist[0] < 1.0
+
+
+def test_sharp_distance_weights_keep_the_nearest_and_uniform_weights_average(bank):
+    q, r = _bank_transition(bank, 75)
+    q[-1, 5:] = quat_mul(quat_from_axis_angle(np.array([1.0, 0.0, 0.0]), np.float64(0.2)), q[-1, 5:])  # not in the bank
+    one = _knn(bank, q, r, k=1)
+    sharp = _knn(bank, q, r, k=8, tau=1e-6)
+    flat = _knn(bank, q, r, k=8, tau=0.0)
+    np.testing.assert_allclose(sharp[1], one[1], atol=1e-6)
+    np.testing.assert_allclose(sharp[0], one[0], atol=1e-6)
+    assert np.abs(flat[1] - one[1]).max() > 0.1                   # eight different transitions averaged
+
+
+def test_blend_ends_and_middle():
+    rng = np.random.default_rng(0)
+    q = rng.normal(size=(3, 2, 5, 4, 4))
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    r = rng.normal(size=(3, 2, 5, 3))
+    bq = rng.normal(size=(2, 5, 4, 4))
+    bq /= np.linalg.norm(bq, axis=-1, keepdims=True)
+    br = rng.normal(size=(2, 5, 3))
+    q0, r0 = blend(q, r, bq, br, 0.0)
+    q1, r1 = blend(q, r, bq, br, 1.0)
+    np.testing.assert_allclose(r0, r)
+    np.testing.assert_allclose(r1, np.broadcast_to(br, r.shape))
+    np.testing.assert_allclose(np.abs(np.sum(q0 * q, -1)), 1.0, atol=1e-9)
+    np.testing.assert_allclose(np.abs(np.sum(q1 * bq[None], -1)), 1.0, atol=1e-9)
+    _, rh = blend(q, r, bq, br, 0.5)
+    np.testing.assert_allclose(rh, (r + br[None]) / 2)
+
+
+def test_bank_file_round_trip_and_errors(bank, tmp_path):
+    path = str(tmp_path / BANK_FILE)
+    bank.save(path)
+    back = TransitionBank.load(path)
+    assert back.names == bank.names and back.parents == bank.parents and back.stride == bank.stride
+    np.testing.assert_array_equal(back.root_pos, bank.root_pos)
+    assert np.abs(np.abs(np.sum(back.local_quats * bank.local_quats, -1)) - 1).max() < 1e-5   # float16 storage
+    with pytest.raises(UserError, match="not a readable transition bank"):
+        TransitionBank.load(str(tmp_path / "missing.npz"))
+    np.savez(str(tmp_path / "bad.npz"), local_quats=np.zeros((4, 3)))
+    with pytest.raises(UserError, match="bad.npz"):
+        TransitionBank.load(str(tmp_path / "bad.npz"))
+    with pytest.raises(UserError, match="no clip holds"):
+        back.index(10 ** 6)
+
+
+def test_switches_and_the_bank_in_sample_transitions(bank, tmp_path):
+    """A copy of the shipped S-CVAE: without bank.npz its load fails in one line; with ``bank_weight`` 1 its
+    samples are the bank's transitions; a mismatched skeleton is refused."""
+    from inbetween_jax.models.scvae import infer
+    from inbetween_jax.shipped import shipped_dir
+    from inbetween_jax.train.run import load_run
+    src = shipped_dir("scvae")
+    if src is None:
+        pytest.skip("no shipped S-CVAE weights")
+    run_dir = str(tmp_path / "scvae")
+    shutil.copytree(src, run_dir)
+    meta = json.load(open(os.path.join(run_dir, "run.json")))
+    meta["config"]["model"].update(bank_k=4, bank_weight=1.0, bank_tau=0.5)
+    json.dump(meta, open(os.path.join(run_dir, "run.json"), "w"))
+    with pytest.raises(RunError, match="bank.npz is missing"):
+        infer.load(load_run(run_dir))
+    bank.save(os.path.join(run_dir, BANK_FILE))
+    trained = infer.load(load_run(run_dir))
+    assert bank_enabled(trained.cfg.model) and trained.bank.num_frames == bank.num_frames
+    wins = load_dataset("embedded", "benchmark").take(slice(0, 3))
+    s = infer.sample_transitions(trained.cfg.model, trained.state, wins, 10, L, 2, bank=trained.bank)
+    kq, kr, _ = knn_transition(trained.bank, wins.local_quats[:, 9], wins.root_pos[:, 9], wins.local_quats[:, 10 + L],
+                               wins.root_pos[:, 10 + L], L, 4, 0.5)
+    np.testing.assert_allclose(s["r"], np.broadcast_to(kr, s["r"].shape), atol=1e-5)
+    net = infer.sample_transitions(trained.cfg.model, trained.state, wins, 10, L, 2)
+    assert np.abs(net["r"] - s["r"]).max() > 0.1                     # without the bank: the network's own
+    small = dataclasses.replace(bank, local_quats=bank.local_quats[:, :5], offsets=bank.offsets[:5],
+                                parents=bank.parents[:5])
+    small.save(os.path.join(run_dir, BANK_FILE))
+    with pytest.raises(RunError, match="joints"):
+        infer.load(load_run(run_dir))
+
+
+def test_build_bank_script_writes_the_bank_and_the_switches(tmp_path, capsys):
+    import importlib.util
+    from inbetween_jax.shipped import shipped_dir
+    src = shipped_dir("scvae")
+    if src is None:
+        pytest.skip("no shipped S-CVAE weights")
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    spec = importlib.util.spec_from_file_location("build_bank", os.path.join(root, "experiments", "build_bank.py"))
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    run_dir = str(tmp_path / "scvae")
+    shutil.copytree(src, run_dir)
+    assert script.main([run_dir, "--source", "embedded", "--set", "model.texture_gain=1"]) == 2
+    assert "not a bank switch" in capsys.readouterr().err and not os.path.exists(os.path.join(run_dir, BANK_FILE))
+    assert script.main([run_dir, "--source", "embedded", "--split", "train", "--set", "model.bank_k=8",
+                        "--set", "model.bank_weight=0.5"]) == 0
+    meta = json.load(open(os.path.join(run_dir, "run.json")))
+    assert meta["config"]["model"]["bank_k"] == 8 and meta["config"]["model"]["bank_weight"] == 0.5
+    bank = TransitionBank.load(os.path.join(run_dir, BANK_FILE))
+    assert bank.num_frames == meta["bank"]["frames"] and len(bank.names) == len(load_motions("embedded", "train"))
