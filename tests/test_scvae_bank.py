@@ -169,3 +169,31 @@ def test_build_bank_script_writes_the_bank_and_the_switches(tmp_path, capsys):
     assert meta["config"]["model"]["bank_k"] == 8 and meta["config"]["model"]["bank_weight"] == 0.5
     bank = TransitionBank.load(os.path.join(run_dir, BANK_FILE))
     assert bank.num_frames == meta["bank"]["frames"] and len(bank.names) == len(load_motions("embedded", "train"))
+
+
+def test_transitions_that_spin_are_not_candidates():
+    """Two keyframes cannot tell a full spin from none: a clip turned about +Y by a growing angle (one full turn
+    every 60 frames) keeps the unturned clip's candidates only where the extra turn stays under half a turn."""
+    from inbetween_jax.models.scvae.bank import MAX_TURN
+    m = load_motions("embedded", "train")[0]
+    spin = 2 * np.pi * np.arange(m.num_frames) / 60.0
+    up = np.zeros((m.num_frames, 3))
+    up[:, 1] = 1.0
+    rot = quat_from_axis_angle(up, spin)
+    q = m.local_quats.astype(np.float64).copy()
+    q[:, 0] = quat_mul(rot, q[:, 0])
+    spun = dataclasses.replace(m, local_quats=q, local_pos=m.local_pos.copy())
+    spun.local_pos[:, 0] = quat_rotate(rot, m.root_pos.astype(np.float64))
+    fa = m.skeleton.forward_axis()
+    plain_bank = TransitionBank.from_motions([m], fa, stride=1)
+    spun_bank = TransitionBank.from_motions([spun], fa, stride=1)
+    for length in (5, 20, 28):
+        frames = plain_bank.index(length)[0]
+        extra = spun_bank._turned(frames, length + 1) - plain_bank._turned(frames, length + 1)
+        np.testing.assert_allclose(extra, 2 * np.pi * (length + 1) / 60.0, atol=1e-6)
+        kept = set(spun_bank.index(length)[0])
+        expect = set(frames[np.abs(spun_bank._turned(frames, length + 1)) <= MAX_TURN])
+        assert kept == expect
+    np.testing.assert_array_equal(spun_bank.index(5)[0], plain_bank.index(5)[0])    # 0.6 rad more: all kept
+    with pytest.raises(UserError, match="turns less than half a turn"):
+        spun_bank.index(40)                                           # every 41-frame span turns 4.3 rad or more

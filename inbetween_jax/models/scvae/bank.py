@@ -34,6 +34,7 @@ BANK_FILE = "bank.npz"
 SWITCHES = ("model.bank_k", "model.bank_weight", "model.bank_tau")     # inference only
 CACHED_LENGTHS = 8        # transition lengths whose match features a bank keeps (about 30 MB each for CMU)
 QUERY_CHUNK = 64          # queries warped at once (memory: chunk x k x frames x joints x 4)
+MAX_TURN = np.pi          # bank transitions whose root turns further than this (radians) are not candidates
 
 
 @dataclasses.dataclass
@@ -51,6 +52,7 @@ class TransitionBank:
     forward_axis: np.ndarray
     stride: int = 2
     _cache: dict = dataclasses.field(default_factory=dict, repr=False, compare=False)
+    _facing: np.ndarray | None = dataclasses.field(default=None, repr=False, compare=False)
 
     @classmethod
     def from_motions(cls, motions, forward_axis, stride: int = 2) -> "TransitionBank":
@@ -118,14 +120,25 @@ class TransitionBank:
         bounds = zip(self.clip_starts[:-1], self.clip_starts[1:])
         starts = [np.arange(a, b - length - 1, self.stride) for a, b in bounds]
         frames = np.concatenate(starts).astype(np.int64) if starts else np.zeros(0, np.int64)
+        frames = frames[np.abs(self._turned(frames, length + 1)) <= MAX_TURN]
         if len(frames) == 0:
-            raise UserError(f"transition bank: no clip holds a {length}-frame transition")
+            raise UserError(f"transition bank: no clip holds a {length}-frame transition that turns less than half "
+                            f"a turn")
         keys_q = np.stack([self.local_quats[frames], self.local_quats[frames + length + 1]], 1).astype(np.float64)
         keys_r = np.stack([self.root_pos[frames], self.root_pos[frames + length + 1]], 1).astype(np.float64)
         yaw, xz = keyframe_space(keys_q[:, 0, 0], keys_r[:, 0], self.forward_axis)
         feats = self._features(*_to_space(keys_q, keys_r, yaw, xz)).astype(np.float32)
         self._cache[length] = (frames, yaw, xz, feats)
         return self._cache[length]
+
+    def _turned(self, frames, span: int):
+        """Root facing change (radians, unwrapped: a full spin is 2 pi) from each of ``frames`` to ``span``
+        frames later.  Two keyframes cannot tell a spin from standing still, so spins are left out."""
+        if self._facing is None:
+            yaw = keyframe_space(self.local_quats[:, 0].astype(np.float64), self.root_pos, self.forward_axis)[0]
+            step = np.angle(np.exp(1j * np.diff(yaw)))                      # per frame, wrapped to (-pi, pi]
+            self._facing = np.concatenate([[0.0], np.cumsum(step)])
+        return self._facing[frames + span] - self._facing[frames]
 
     def _features(self, q, r):
         """q (N, 2, J, 4), r (N, 2, 3) keyframe pairs in their start's space -> (N, 2 J 3) joint positions."""
