@@ -91,7 +91,7 @@ def test_bank_file_round_trip_and_errors(bank, tmp_path):
         MotionBank.load(str(bad))
     cfg = get_config("tiny")
     on = dataclasses.replace(cfg, model=dataclasses.replace(cfg.model, texture_sigma=4.0))
-    with pytest.raises(RunError, match="bank.npz is missing"):
+    with pytest.raises(RunError, match="needs bank.npz, which is missing"):
         load_bank(str(tmp_path / "empty"), on, bank.takes[0].shape[2])
     with pytest.raises(RunError, match="joints"):
         load_bank(str(tmp_path), on, bank.takes[0].shape[2] + 1)

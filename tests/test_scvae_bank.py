@@ -130,7 +130,7 @@ def test_switches_and_the_bank_in_sample_transitions(bank, tmp_path):
     meta = json.load(open(os.path.join(run_dir, "run.json")))
     meta["config"]["model"].update(bank_k=4, bank_weight=1.0, bank_tau=0.5)
     json.dump(meta, open(os.path.join(run_dir, "run.json"), "w"))
-    with pytest.raises(RunError, match="bank.npz is missing"):
+    with pytest.raises(RunError, match="needs bank.npz, which is missing"):
         infer.load(load_run(run_dir))
     bank.save(os.path.join(run_dir, BANK_FILE))
     trained = infer.load(load_run(run_dir))

@@ -25,7 +25,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["RUN_FILE", "WEIGHTS_FILE", "FORMAT", "RunError", "Run", "write_run", "load_run", "record_training",
+__all__ = ["RUN_FILE", "WEIGHTS_FILE", "FORMAT", "RunError", "Run", "write_run", "load_run", "load_run_file",
+           "record_training",
            "restore_state", "to_json_arrays", "from_json_arrays", "flat_leaves"]
 
 RUN_FILE = "run.json"
@@ -146,6 +147,19 @@ def record_training(run_dir: str, steps: int, wall_s: float, **info) -> None:
         "steps": int(steps), "wall_s": round(float(wall_s), 1),
         "finished": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"), **info})
     _atomic_json(path, meta)
+
+
+def load_run_file(run_dir: str, name: str, loader, need: str):
+    """``loader(path)`` of the file ``name`` in ``run_dir`` (e.g. a motion bank), which ``need`` (the switch that
+    uses it) requires.  Raises RunError (one line) when it is missing, or when ``loader`` raises UserError."""
+    from inbetween_jax.errors import UserError
+    path = os.path.join(run_dir, name)
+    if not os.path.isfile(path):
+        raise RunError(f"{run_dir}: {need} needs {name}, which is missing (write it with experiments/build_bank.py)")
+    try:
+        return loader(path)
+    except UserError as e:
+        raise RunError(str(e)) from None
 
 
 def _checkpoint_steps(ckpt_dir: str) -> list[int]:

@@ -28,7 +28,7 @@ from inbetween_jax.models.interaction.features import (apply_space, key_space_in
 from inbetween_jax.models.interaction.model import sample_rollouts
 from inbetween_jax.models.spec import InfillResult
 from inbetween_jax.train.config import config_from_dict
-from inbetween_jax.train.run import Run, RunError, restore_state
+from inbetween_jax.train.run import Run, RunError, load_run_file, restore_state
 
 __all__ = ["Trained", "load", "load_bank", "infill_features", "features_to_motion", "infill"]
 
@@ -80,13 +80,7 @@ def load_bank(run_dir: str, cfg: Config, num_joints: int) -> MotionBank | None:
     if not bank_enabled(m):
         return None
     path = os.path.join(run_dir, BANK_FILE)
-    if not os.path.isfile(path):
-        raise RunError(f"{run_dir}: model.bank_k / model.texture_sigma need a motion bank, and {BANK_FILE} is "
-                       f"missing (write one with experiments/build_bank.py)")
-    try:
-        bank = MotionBank.load(path)
-    except UserError as e:
-        raise RunError(str(e)) from None
+    bank = load_run_file(run_dir, BANK_FILE, MotionBank.load, "model.bank_k / model.texture_sigma")
     if bank.takes[0].shape[2] != num_joints or abs(bank.pos_scale - cfg.data.pos_scale) > 1e-12:
         raise RunError(f"{path}: the bank has {bank.takes[0].shape[2]} joints at position scale {bank.pos_scale:g}, "
                        f"the model {num_joints} at {cfg.data.pos_scale:g}")

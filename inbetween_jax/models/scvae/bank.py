@@ -5,16 +5,17 @@ turns it on (``model.bank_k`` > 0, ``model.bank_weight``, ``model.bank_tau``).  
 clips' local rotations and root positions (``bank.npz`` in a run or shipped weights folder, written by
 ``experiments/build_bank.py``).
 
-:func:`knn_transition` finds, for two keyframes ``length + 1`` frames apart, the ``k`` training transitions of the
-same length whose two keyframes lie nearest to the query's: every joint's position at both keyframes, each pair
-in the space of its start keyframe (root on the origin in the floor plane, facing +Z), so the match sees the
-poses and where the target lies relative to the start.  Each is warped onto the query's keyframes (Witkin &
+:func:`knn_transition` finds, for two keyframes ``length + 1`` frames apart, the ``k`` training transitions of
+the same length whose two keyframes lie nearest to the query's: every joint's position at both keyframes, each
+pair in the space of its start keyframe (root on the origin in the floor plane, facing +Z), so the match sees the
+poses and where the target lies relative to the start. Each is warped onto the query's keyframes (Witkin &
 Popovic 1995: per joint, the rotation offset at the two ends slerped over the transition; the root's position
 offset lerped) and the ``k`` are averaged, uniformly (``tau`` 0) or with weights ``exp(-(d - d_1) / (tau d_1))``
-of their squared match distance ``d`` (``d_1`` the nearest's).  :func:`blend` mixes that with the network's
-samples (``bank_weight``: 1 keeps the bank's transition only).  Why: at the CPU budget the S-CVAE stays at
-Slerp's level (docs/results/scvae.md), while warped real transitions carry what the two keyframes imply about
-the motion between them.
+of their squared match distance ``d`` (``d_1`` the nearest's). Transitions whose root turns further than half a
+turn (:data:`MAX_TURN`) are left out: two keyframes cannot tell a spin from none. :func:`blend` mixes that with
+the network's samples (``bank_weight``: 1 keeps the bank's transition only). Why: at the CPU budget the S-CVAE
+stays at Slerp's level (docs/results/scvae.md), while warped real transitions carry what the two keyframes imply
+about the motion between them.
 """
 from __future__ import annotations
 

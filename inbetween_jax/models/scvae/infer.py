@@ -82,24 +82,16 @@ def load_bank(run_dir: str, model_cfg, num_joints: int) -> TransitionBank | None
     Raises:
         RunError: a negative or out-of-range setting, or the bank file missing, unreadable or on another skeleton.
     """
-    from inbetween_jax.errors import UserError
-    from inbetween_jax.train.run import RunError
+    from inbetween_jax.train.run import RunError, load_run_file
     m = model_cfg
     if m.bank_k < 0 or not 0 <= m.bank_weight <= 1 or m.bank_tau < 0:
         raise RunError(f"{run_dir}: model.bank_k and model.bank_tau must not be negative and model.bank_weight must "
                        f"lie in 0..1 (got {m.bank_k}, {m.bank_tau}, {m.bank_weight})")
     if not bank_enabled(m):
         return None
-    path = os.path.join(run_dir, BANK_FILE)
-    if not os.path.isfile(path):
-        raise RunError(f"{run_dir}: model.bank_k needs a transition bank, and {BANK_FILE} is missing (write one "
-                       f"with experiments/build_bank.py)")
-    try:
-        bank = TransitionBank.load(path)
-    except UserError as e:
-        raise RunError(str(e)) from None
+    bank = load_run_file(run_dir, BANK_FILE, TransitionBank.load, "model.bank_k")
     if bank.num_joints != num_joints:
-        raise RunError(f"{path}: the bank has {bank.num_joints} joints, the model {num_joints}")
+        raise RunError(f"{os.path.join(run_dir, BANK_FILE)}: the bank has {bank.num_joints} joints, the model {num_joints}")
     return bank
 
 
