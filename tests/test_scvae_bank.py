@@ -142,6 +142,10 @@ def test_switches_and_the_bank_in_sample_transitions(bank, tmp_path):
     np.testing.assert_allclose(s["r"], np.broadcast_to(kr, s["r"].shape), atol=1e-5)
     net = infer.sample_transitions(trained.cfg.model, trained.state, wins, 10, L, 2)
     assert np.abs(net["r"] - s["r"]).max() > 0.1                     # without the bank: the network's own
+    start = {"q": wins.local_quats[0, 9], "r": wins.root_pos[0, 9], "c": wins.contacts[0, 9]}
+    end = {"q": wins.local_quats[0, 10 + L], "r": wins.root_pos[0, 10 + L], "c": wins.contacts[0, 10 + L]}
+    out = infer.infill_between(trained, wins.skeleton, start, end, L, 2)    # users' keyframes: the same bank
+    np.testing.assert_allclose(out["r"][:, 1:-1], np.broadcast_to(kr[0], (2, L, 3)), atol=1e-4)
     small = dataclasses.replace(bank, local_quats=bank.local_quats[:, :5], offsets=bank.offsets[:5],
                                 parents=bank.parents[:5])
     small.save(os.path.join(run_dir, BANK_FILE))
