@@ -145,7 +145,7 @@ def test_official_rows_give_the_velocity_model_its_past_frame():
     w = load_dataset(None, "train")
     cfg, state = _untrained_velocity_model(w, 0.1)
     x_mean, x_std = l2p_stats(w.global_pose()[1])
-    rows = official_rows(SimpleNamespace(cfg=cfg, state=state), bench, x_mean, x_std, "model")
+    rows = official_rows(SimpleNamespace(cfg=cfg, state=state, bank=None), bench, x_mean, x_std, "model")
     by = {(r["method"], r["frames"]): r for r in rows}
     base = velocity_baseline_name(cfg.model)
     assert {m for m, _ in by} == {"Slerp", base, "model"} and "damped 0.1 / frame" in base
