@@ -13,6 +13,7 @@ inference switches (interaction: ``model.bank_k``, ``model.bank_weight``, ``mode
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import os
 import sys
@@ -33,7 +34,8 @@ def main(argv=None) -> int:
         run = load_run(a.run_dir, need_checkpoint=False)
         if run.model not in BUILDERS:
             raise RunError(f"{a.run_dir}: holds a {run.model} run; banks exist for {', '.join(BUILDERS)} runs")
-        switches, file_name = SWITCHES[run.model]()
+        module = importlib.import_module(f"inbetween_jax.models.{run.model}.bank")
+        switches, file_name = module.SWITCHES, module.BANK_FILE
         bad = [s for s in a.switches if s.split("=", 1)[0] not in switches]
         if bad:
             raise RunError(f"--set {bad[0]}: not a bank switch (choose {', '.join(switches)})")
@@ -89,16 +91,7 @@ def _scvae_bank(run, source, split):
     return TransitionBank.from_motions(motions, np.asarray(fa, np.float64))
 
 
-def _switches(module):
-    def get():
-        import importlib
-        m = importlib.import_module(f"inbetween_jax.models.{module}.bank")
-        return m.SWITCHES, m.BANK_FILE
-    return get
-
-
-BUILDERS = {"interaction": _interaction_bank, "scvae": _scvae_bank}
-SWITCHES = {"interaction": _switches("interaction"), "scvae": _switches("scvae")}
+BUILDERS = {"interaction": _interaction_bank, "scvae": _scvae_bank}     # model -> its bank, from the run's data
 
 
 if __name__ == "__main__":

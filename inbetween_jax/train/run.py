@@ -26,8 +26,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["RUN_FILE", "WEIGHTS_FILE", "FORMAT", "RunError", "Run", "write_run", "load_run", "load_run_file",
-           "record_training",
-           "restore_state", "to_json_arrays", "from_json_arrays", "flat_leaves"]
+           "record_training", "restore_state", "to_json_arrays", "from_json_arrays", "flat_leaves"]
 
 RUN_FILE = "run.json"
 WEIGHTS_FILE = "params.npz"

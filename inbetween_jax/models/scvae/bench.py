@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from inbetween_jax.models.scvae.bank import bank_enabled, knn_transition
+from inbetween_jax.models.scvae.bank import bank_enabled, blend
 
 N_PAST = 10
 LENGTHS = (10, 30, 50)
@@ -68,9 +68,15 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
     longest = None
     model_cfg = trained.cfg.model
     use_bank = trained.bank is not None and bank_enabled(model_cfg)
-    extra_names = {NETWORK_ALONE: "scvae", bank_alone_name(model_cfg): "bank"} if use_bank else {}
     for length in lengths:
-        s = infer.sample_transitions(model_cfg, trained.state, bench, N_PAST, length, NUM_SAMPLES, bank=trained.bank)
+        s = infer.sample_transitions(model_cfg, trained.state, bench, N_PAST, length, NUM_SAMPLES)
+        if use_bank:       # what the network and the bank each give alone, then the two blended
+            rows.append({"method": NETWORK_ALONE, "frames": length, "MMPE": None,
+                         **transition_metrics(bench, N_PAST, length, s["q"], s["r"], x_mean, x_std)})
+            q, r = infer.bank_transitions(trained.bank, model_cfg, bench, N_PAST, length)
+            rows.append({"method": bank_alone_name(model_cfg), "frames": length, "MMPE": None,
+                         **transition_metrics(bench, N_PAST, length, q, r, x_mean, x_std)})
+            s = dict(s, **dict(zip(("q", "r"), blend(s["q"], s["r"], q, r, model_cfg.bank_weight))))
         if length == max(lengths):
             longest = s
         row = {"method": "S-CVAE", "frames": length,
@@ -78,13 +84,6 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
         row["MMPE"] = (float(metrics.mmpe(s["mid_f"][:, :, None], s["mid_b"][:, :, None], mid_index=0))
                        if "mid_f" in s else None)
         rows.append(row)
-        if use_bank:       # what the network and the bank each give alone
-            s = infer.sample_transitions(model_cfg, trained.state, bench, N_PAST, length, NUM_SAMPLES)
-            rows.append({"method": NETWORK_ALONE, "frames": length, "MMPE": None,
-                         **transition_metrics(bench, N_PAST, length, s["q"], s["r"], x_mean, x_std)})
-            q, r = bank_transitions(trained.bank, model_cfg, bench, N_PAST, length)
-            rows.append({"method": bank_alone_name(model_cfg), "frames": length, "MMPE": None,
-                         **transition_metrics(bench, N_PAST, length, q, r, x_mean, x_std)})
     order = {"Slerp": 0, "S-CVAE": 1, NETWORK_ALONE: 2}
     rows.sort(key=lambda r: (r["frames"], order.get(r["method"], 3)))
     cols = tuple(TABLE_COLUMNS) + ("MMPE",)
@@ -109,11 +108,13 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
                            variant=run_.preset)
                + flat_rows([r for r in official if r["method"] == variant], "official", data, model="scvae",
                            variant=run_.preset)
-               + [rec for name, model in extra_names.items() for table, rs in (("table1", rows), ("official", official))
-                  for rec in flat_rows([r for r in rs if r["method"] == name], table, data, model=model,
-                                       variant=run_.preset + ", network alone" if model == "scvae" else name)]
                + flat_rows([r for r in official if r["method"] == velocity_baseline_name(trained.cfg.model)],
                            "official", data, model="slerp_velocity"))
+    for table, rs in (("table1", rows), ("official", official)) if use_bank else ():
+        records += flat_rows([r for r in rs if r["method"] == NETWORK_ALONE], table, data, model="scvae",
+                             variant=f"{run_.preset}, network alone")
+        name = bank_alone_name(model_cfg)
+        records += flat_rows([r for r in rs if r["method"] == name], table, data, model="bank", variant=name)
     return {"markdown": md, "rows": records, "table": rows, "step": trained.step, "source": source,
             "windows": len(bench), "plots": [plot]}
 
@@ -125,14 +126,6 @@ NETWORK_ALONE = "S-CVAE, network alone (no bank)"
 
 def bank_alone_name(model_cfg) -> str:
     return f"Transition bank alone (k {model_cfg.bank_k}, no network)"
-
-
-def bank_transitions(bank, model_cfg, windows, n_past: int, n_trans: int):
-    """The bank's transitions (:func:`.bank.knn_transition`) between frames ``n_past - 1`` and ``n_past +
-    n_trans`` of every window: q (B, n_trans, J, 4), r (B, n_trans, 3)."""
-    k0, k1 = n_past - 1, n_past + n_trans
-    return knn_transition(bank, windows.local_quats[:, k0], windows.root_pos[:, k0], windows.local_quats[:, k1],
-                          windows.root_pos[:, k1], n_trans, model_cfg.bank_k, model_cfg.bank_tau)[:2]
 
 
 def base_damping(model_cfg) -> float:
@@ -164,17 +157,22 @@ def official_rows(trained, bench, x_mean, x_std, name: str) -> list:
         rows.append({"method": base, "frames": n,
                      **official_errors(bench, N_PAST, n, q, r, x_mean, x_std)})
     use_bank = trained.bank is not None and bank_enabled(trained.cfg.model)
+
+    def mean_errors(n, qs, rs):           # over the samples
+        per = [official_errors(bench, N_PAST, n, q, r, x_mean, x_std) for q, r in zip(qs, rs)]
+        return {k: float(np.mean([p[k] for p in per])) for k in per[0]}
+
     for n in lengths:
-        for method, bank in ((name, trained.bank),) + (((NETWORK_ALONE, None),) if use_bank else ()):
-            s = infer.sample_transitions(trained.cfg.model, trained.state, bench, N_PAST, n, NUM_SAMPLES,
-                                         velocity=True, bank=bank)
-            per = [official_errors(bench, N_PAST, n, q, r, x_mean, x_std) for q, r in zip(s["q"], s["r"])]
-            rows.append({"method": method, "frames": n, **{k: float(np.mean([p[k] for p in per])) for k in per[0]}})
+        s = infer.sample_transitions(trained.cfg.model, trained.state, bench, N_PAST, n, NUM_SAMPLES, velocity=True)
+        q, r = s["q"], s["r"]
         if use_bank:
-            q, r = bank_transitions(trained.bank, trained.cfg.model, bench, N_PAST, n)
+            rows.append({"method": NETWORK_ALONE, "frames": n, **mean_errors(n, q, r)})
+            bq, br = infer.bank_transitions(trained.bank, trained.cfg.model, bench, N_PAST, n)
             rows.append({"method": bank_alone_name(trained.cfg.model), "frames": n,
-                         **official_errors(bench, N_PAST, n, q, r, x_mean, x_std)})
-    order = {"Slerp": 0, base: 1, name: 2, NETWORK_ALONE: 3}
+                         **official_errors(bench, N_PAST, n, bq, br, x_mean, x_std)})
+            q, r = blend(q, r, bq, br, trained.cfg.model.bank_weight)
+        rows.append({"method": name, "frames": n, **mean_errors(n, q, r)})
+    order = {"Slerp": 0, base: 1, name: 2, bank_alone_name(trained.cfg.model): 3, NETWORK_ALONE: 4}
     return sorted(rows, key=lambda r: (r["frames"], order.get(r["method"], 2)))
 
 

@@ -24,7 +24,7 @@ from inbetween_jax.models.scvae.bank import BANK_FILE, TransitionBank, bank_enab
 from inbetween_jax.models.scvae.losses import fk_positions
 
 __all__ = ["MIN_FRAMES", "Trained", "load", "load_bank", "infill", "frame_range", "infill_between",
-           "keyframe_contacts", "sample_transitions"]
+           "keyframe_contacts", "sample_transitions", "bank_transitions"]
 
 MIN_FRAMES = 3          # L = frames + 1 >= 4 frames between keyframes (model.rollout)
 
@@ -91,7 +91,8 @@ def load_bank(run_dir: str, model_cfg, num_joints: int) -> TransitionBank | None
         return None
     bank = load_run_file(run_dir, BANK_FILE, TransitionBank.load, "model.bank_k")
     if bank.num_joints != num_joints:
-        raise RunError(f"{os.path.join(run_dir, BANK_FILE)}: the bank has {bank.num_joints} joints, the model {num_joints}")
+        raise RunError(f"{os.path.join(run_dir, BANK_FILE)}: the bank has {bank.num_joints} joints, the model "
+                       f"{num_joints}")
     return bank
 
 
@@ -144,11 +145,17 @@ def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_sampl
                                                   length, tuple(windows.parents))))
     out = {k: np.concatenate([p[k] for p in parts], axis=1) for k in parts[0]}
     if bank is not None and bank_enabled(cfg):
-        kq, kr, _ = knn_transition(bank, windows.local_quats[:, k0], windows.root_pos[:, k0],
-                                   windows.local_quats[:, k1], windows.root_pos[:, k1], n_trans, cfg.bank_k,
-                                   cfg.bank_tau)
+        kq, kr = bank_transitions(bank, cfg, windows, n_past, n_trans)
         out["q"], out["r"] = blend(out["q"], out["r"], kq, kr, cfg.bank_weight)
     return out
+
+
+def bank_transitions(bank: TransitionBank, cfg, windows, n_past: int, n_trans: int):
+    """The bank's transitions (:func:`.bank.knn_transition`, ``cfg.bank_k`` / ``cfg.bank_tau``) between frames
+    ``n_past - 1`` and ``n_past + n_trans`` of every window: q (B, n_trans, J, 4), r (B, n_trans, 3)."""
+    k0, k1 = n_past - 1, n_past + n_trans
+    return knn_transition(bank, windows.local_quats[:, k0], windows.root_pos[:, k0], windows.local_quats[:, k1],
+                          windows.root_pos[:, k1], n_trans, cfg.bank_k, cfg.bank_tau)[:2]
 
 
 # ----------------------------------------------------------------------------- users' keyframes
@@ -217,7 +224,8 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
     r = quat_rotate(np.broadcast_to(yaw, r.shape[:-1] + (4,)), r) + shift
     m = trained.cfg.model
     if trained.bank is not None and bank_enabled(m):
-        kq, kr, _ = knn_transition(trained.bank, qs[None], roots[:1], qe[None], roots[1:], frames, m.bank_k, m.bank_tau)
+        kq, kr, _ = knn_transition(trained.bank, qs[None], roots[:1], qe[None], roots[1:], frames, m.bank_k,
+                                   m.bank_tau)
         mid_q, mid_r = blend(q[:, None, 1:-1], r[:, None, 1:-1], kq, kr, m.bank_weight)
         q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
     q[:, 0], r[:, 0], q[:, -1], r[:, -1] = qs, roots[0], qe, roots[1]                 # exact keyframes
