@@ -55,6 +55,8 @@ def train_model(model: str, preset: str | None = None, overrides: Sequence[str] 
     meta = dict(training.meta)
     meta["data"] = {"source": src, **meta.get("data", {})}
     write_run(run_dir, model=model, preset=preset, overrides=list(overrides), config=config_to_dict(cfg), **meta)
+    for name, write in training.files.items():     # e.g. the S-CVAE's transition bank (model.bank_base)
+        write(os.path.join(run_dir, name))
     if log:
         log(f"{model} ({preset}): {training.describe or 'training'}; {training.num_steps} steps -> {run_dir}")
     tc = cfg.train

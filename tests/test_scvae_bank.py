@@ -201,3 +201,76 @@ def test_transitions_that_spin_are_not_candidates():
     np.testing.assert_array_equal(spun_bank.index(5)[0], plain_bank.index(5)[0])    # 0.6 rad more: all kept
     with pytest.raises(UserError, match="turns less than half a turn"):
         spun_bank.index(40)                                           # every 41-frame span turns 4.3 rad or more
+
+
+def test_a_clip_left_out_is_never_retrieved(bank):
+    """``exclude`` (training with ``model.bank_base``: a window never retrieves its own file): a bank transition's
+    own keyframes then find a transition of another clip, never one of their own."""
+    frames = bank.index(L)[0]
+    clip_of_frame = np.searchsorted(bank.clip_starts, frames, side="right") - 1
+    for i in (0, len(frames) // 2):
+        q, r = _bank_transition(bank, i)
+        own = int(clip_of_frame[i])
+        assert _knn(bank, q, r)[2][0] < 1e-3
+        _, _, dist = knn_transition(bank, q[None, 0], r[None, 0], q[None, -1], r[None, -1], L, 1, 0.0,
+                                    exclude=np.array([own]))
+        assert dist[0] > 1e-2
+    names = [f"{n.rsplit('.', 1)[0]}@7" for n in bank.names]
+    assert list(bank.clip_of([n.split("@")[0] for n in names])) == list(range(len(bank.names)))
+    assert bank.clip_of(["not_a_clip"])[0] == -1
+
+
+def test_bank_base_path_holds_the_keyframes_and_the_bank_transition(bank):
+    from inbetween_jax.models.scvae.bank import knn_base_path
+    q, r = _bank_transition(bank, 5)
+    q, r = _place(q, r, 0.7, np.array([30.0, 0.0, 12.0]))
+    tq, tr = q[None, -1], r[None, -1]
+    bq, br = knn_base_path(bank, q[None, 0], r[None, 0], tq, tr, L + 1, L + 6, 4, 0.5)
+    assert bq.shape == (1, L + 7, bank.num_joints, 4) and br.shape == (1, L + 7, 3)
+    kq, kr, _ = knn_transition(bank, q[None, 0], r[None, 0], tq, tr, L, 4, 0.5)
+    np.testing.assert_allclose(br[0, 1:L + 1], kr[0], atol=1e-4)
+    np.testing.assert_allclose(np.abs(np.sum(bq[0, 1:L + 1] * kq[0], -1)), 1.0, atol=1e-5)
+    np.testing.assert_allclose(br[0, 0], r[0], atol=1e-4)
+    np.testing.assert_allclose(br[0, L + 1:], np.broadcast_to(tr, (6, 3)), atol=1e-4)
+    np.testing.assert_allclose(np.abs(np.sum(bq[0, L + 1:] * tq, -1)), 1.0, atol=1e-5)
+    assert np.sum(bq[0, :-1] * bq[0, 1:], -1).min() > 0                    # signs continuous in time
+
+
+def test_bank_base_training_writes_its_bank_and_an_untrained_model_returns_the_bank(tmp_path):
+    """``model.bank_base``: training keeps its bank in the run folder; no window's base comes from its own file;
+    the untrained residual model (zero-initialised head) returns the bank's transition; without its bank the
+    model is refused in one line."""
+    from inbetween_jax.models.scvae import infer
+    from inbetween_jax.models.scvae import train as T
+    from inbetween_jax.runner import build_config, train_model
+    from inbetween_jax.train.run import load_run
+    over = ["model.residual=true", "model.bank_base=true", "model.bank_k=4", "model.bank_tau=0.5"]
+    cfg = build_config("scvae", "tiny", over)
+    data = T.load_data(cfg, "embedded", "train")
+    own = data.bank.clip_of([n.split("@")[0] for n in data.names])
+    assert own.min() >= 0
+    batch = T.batch_fn_factory(data, cfg)(0, __import__("jax").random.key(3))
+    n = int(batch["length"])
+    assert batch["base_q"].shape == batch["q"].shape and batch["base_r"].shape == batch["r"].shape
+    np.testing.assert_allclose(batch["base_r"][:, [0, n]], batch["r"][:, [0, n]], atol=1e-4)
+    assert np.abs(batch["base_r"][:, 1:n] - batch["r"][:, 1:n]).max(axis=(1, 2)).min() > 1e-3   # not itself
+    with pytest.raises(ValueError, match="model.bank_base needs"):
+        T.load_data(build_config("scvae", "tiny", ["model.bank_base=true", "model.bank_k=4"]), "embedded", "train")
+    run_dir = str(tmp_path / "run")
+    train_model("scvae", "tiny", over + ["train.num_steps=0"], source="embedded", run_dir=run_dir, log=None)
+    trained = infer.load(load_run(run_dir))
+    assert trained.bank.num_frames == data.bank.num_frames
+    wins = load_dataset("embedded", "benchmark").take(slice(0, 3))
+    s = infer.sample_transitions(trained.cfg.model, trained.state, wins, 10, 8, 2, bank=trained.bank)
+    kq, kr = infer.bank_transitions(trained.bank, trained.cfg.model, wins, 10, 8)
+    np.testing.assert_allclose(s["r"], np.broadcast_to(kr, s["r"].shape), atol=1e-3)
+    np.testing.assert_allclose(np.abs(np.sum(s["q"] * kq[None], -1)), 1.0, atol=1e-4)
+    start = {"q": wins.local_quats[0, 9], "r": wins.root_pos[0, 9], "c": wins.contacts[0, 9]}
+    end = {"q": wins.local_quats[0, 18], "r": wins.root_pos[0, 18], "c": wins.contacts[0, 18]}
+    out = infer.infill_between(trained, wins.skeleton, start, end, 8, 2)      # users' keyframes: the same
+    np.testing.assert_allclose(out["r"][:, 1:-1], np.broadcast_to(kr[0], (2, 8, 3)), atol=1e-3)
+    with pytest.raises(ValueError, match="pass its bank"):
+        infer.sample_transitions(trained.cfg.model, trained.state, wins, 10, 8, 2)
+    os.remove(os.path.join(run_dir, BANK_FILE))
+    with pytest.raises(RunError, match="needs bank.npz"):
+        infer.load(load_run(run_dir))

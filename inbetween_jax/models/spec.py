@@ -39,6 +39,7 @@ class Training:
     num_steps: int
     meta: dict
     describe: str = ""       # one line for the user: what it trains on
+    files: dict = dataclasses.field(default_factory=dict)   # file name -> writer(path): saved in the run folder
 
 
 def sample_names(n: int) -> list:

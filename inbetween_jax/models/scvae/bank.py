@@ -29,7 +29,8 @@ from inbetween_jax.geometry.kinematics import forward_kinematics, local_position
 from inbetween_jax.geometry.quaternion import quat_from_axis_angle, quat_inv, quat_mul, quat_normalize, quat_rotate
 from inbetween_jax.geometry.quaternion import quat_fix_sign_np, quat_slerp
 
-__all__ = ["BANK_FILE", "SWITCHES", "TransitionBank", "keyframe_space", "knn_transition", "blend", "bank_enabled"]
+__all__ = ["BANK_FILE", "SWITCHES", "TransitionBank", "keyframe_space", "knn_transition", "knn_base_path", "blend",
+           "bank_enabled", "bank_needed"]
 
 BANK_FILE = "bank.npz"
 SWITCHES = ("model.bank_k", "model.bank_weight", "model.bank_tau")     # inference only
@@ -52,6 +53,7 @@ class TransitionBank:
     parents: tuple
     forward_axis: np.ndarray
     stride: int = 2
+    cache_lengths: int = CACHED_LENGTHS
     _cache: dict = dataclasses.field(default_factory=dict, repr=False, compare=False)
     _facing: np.ndarray | None = dataclasses.field(default=None, repr=False, compare=False)
 
@@ -112,11 +114,11 @@ class TransitionBank:
     def index(self, length: int):
         """``(frames, yaw, xz, feats)`` of every bank transition of ``length`` in-between frames (stride
         :attr:`stride`): its start keyframe's index (N,), facing (N,) and floor position (N, 2), and its match
-        features (N, 2 J 3) float32; cached for the :data:`CACHED_LENGTHS` lengths used last."""
+        features (N, 2 J 3) float32; cached for the :attr:`cache_lengths` lengths used last."""
         if length in self._cache:
             self._cache[length] = self._cache.pop(length)              # most recently used last
             return self._cache[length]
-        while len(self._cache) >= CACHED_LENGTHS:
+        while len(self._cache) >= self.cache_lengths:
             self._cache.pop(next(iter(self._cache)))
         bounds = zip(self.clip_starts[:-1], self.clip_starts[1:])
         starts = [np.arange(a, b - length - 1, self.stride) for a, b in bounds]
@@ -131,6 +133,12 @@ class TransitionBank:
         feats = self._features(*_to_space(keys_q, keys_r, yaw, xz)).astype(np.float32)
         self._cache[length] = (frames, yaw, xz, feats)
         return self._cache[length]
+
+    def clip_of(self, names) -> np.ndarray:
+        """Bank clip index of each name (a file name, with or without its extension; -1 when not in the bank)."""
+        stem = lambda n: str(n).rsplit("/", 1)[-1].rsplit(".", 1)[0]       # noqa: E731
+        where = {stem(n): i for i, n in enumerate(self.names)}
+        return np.asarray([where.get(stem(n), -1) for n in names], np.int64)
 
     def _turned(self, frames, span: int):
         """Root facing change (radians, unwrapped: a full spin is 2 pi) from each of ``frames`` to ``span``
@@ -201,13 +209,15 @@ def _warped_mean(cand_q, cand_r, key_q, key_r, weights):
     return quat_normalize((warp_q * w[..., None]).sum(1)), (warp_r * w).sum(1)
 
 
-def knn_transition(bank: TransitionBank, key_q, key_r, tgt_q, tgt_r, length: int, k: int, tau: float = 0.0):
+def knn_transition(bank: TransitionBank, key_q, key_r, tgt_q, tgt_r, length: int, k: int, tau: float = 0.0,
+                   exclude=None):
     """The bank's in-between of ``length`` frames between keyframes ``key`` and ``tgt`` (``length + 1`` apart).
 
     key_q, tgt_q: (B, J, 4) local quaternions; key_r, tgt_r: (B, 3) root positions, any world space.
     Returns q (B, length, J, 4), r (B, length, 3) float64 in the same space (signs continuous from the start
     keyframe's), and the nearest match's distance (B,): root mean square over the joints of both keyframes, in
-    the data's units.
+    the data's units.  exclude: (B,) a bank clip index per query (:meth:`TransitionBank.clip_of`; -1: none)
+    whose transitions are not candidates for it (training: a window never retrieves its own motion).
     """
     frames, yaw_b, xz_b, feats = bank.index(length)
     feats = feats.astype(np.float64)
@@ -216,6 +226,7 @@ def knn_transition(bank: TransitionBank, key_q, key_r, tgt_q, tgt_r, length: int
     key_r2 = np.stack([key_r, tgt_r], 1).astype(np.float64)
     out_q, out_r, out_d = [], [], []
     f2 = np.sum(feats ** 2, 1)
+    clips = np.searchsorted(bank.clip_starts, frames, side="right") - 1 if exclude is not None else None
     n = length + 2
     for lo in range(0, len(key_q2), QUERY_CHUNK):
         q2, r2 = key_q2[lo:lo + QUERY_CHUNK], key_r2[lo:lo + QUERY_CHUNK]
@@ -223,6 +234,8 @@ def knn_transition(bank: TransitionBank, key_q, key_r, tgt_q, tgt_r, length: int
         sq, sr = _to_space(q2, r2, yaw, xz)
         g = bank._features(sq, sr)
         d2 = np.sum(g ** 2, 1)[:, None] - 2.0 * g @ feats.T + f2[None]
+        if exclude is not None:
+            d2[clips[None] == np.asarray(exclude)[lo:lo + QUERY_CHUNK, None]] = np.inf
         near = np.argpartition(d2, k - 1, axis=1)[:, :k] if k < d2.shape[1] else np.argsort(d2, 1)
         dk = np.take_along_axis(d2, near, 1)
         order = np.argsort(dk, 1)
@@ -246,6 +259,21 @@ def knn_transition(bank: TransitionBank, key_q, key_r, tgt_q, tgt_r, length: int
     return np.concatenate(out_q), np.concatenate(out_r), np.concatenate(out_d)
 
 
+def knn_base_path(bank: TransitionBank, start_q, start_r, tgt_q, tgt_r, length: int, max_length: int, k: int,
+                  tau: float = 0.0, exclude=None):
+    """The residual decoder's base (``model.bank_base``) at times 0..max_length: the start keyframe, the bank's
+    in-between of :func:`knn_transition` (``length - 1`` frames), the target at ``length`` and held after it.
+    start_q, tgt_q (B, J, 4); start_r, tgt_r (B, 3).  Returns q (B, T1, J, 4), r (B, T1, 3) float32, T1 =
+    max_length + 1, signs continuous from the start keyframe's."""
+    q, r, _ = knn_transition(bank, start_q, start_r, tgt_q, tgt_r, length - 1, k, tau, exclude)
+    hold = max_length + 1 - length
+    tq = _align(np.asarray(tgt_q, np.float64)[:, None], q[:, -1:])
+    bq = np.concatenate([np.asarray(start_q, np.float64)[:, None], q, np.repeat(tq, hold, 1)], 1)
+    br = np.concatenate([np.asarray(start_r, np.float64)[:, None], r,
+                         np.repeat(np.asarray(tgt_r, np.float64)[:, None], hold, 1)], 1)
+    return bq.astype(np.float32), br.astype(np.float32)
+
+
 def blend(q, r, bank_q, bank_r, weight: float):
     """Mix samples q (S, B, L, J, 4), r (S, B, L, 3) with the bank's transition bank_q (B, L, J, 4),
     bank_r (B, L, 3): slerp / lerp by ``weight`` (0: the samples, 1: the bank's)."""
@@ -254,4 +282,10 @@ def blend(q, r, bank_q, bank_r, weight: float):
 
 
 def bank_enabled(model_cfg) -> bool:
+    """The samples are blended with the bank's transition."""
     return int(getattr(model_cfg, "bank_k", 0)) > 0 and float(getattr(model_cfg, "bank_weight", 0.0)) > 0
+
+
+def bank_needed(model_cfg) -> bool:
+    """The model needs a bank: for the blend (:func:`bank_enabled`) or as its residual base (``bank_base``)."""
+    return bank_enabled(model_cfg) or bool(getattr(model_cfg, "bank_base", False))

@@ -33,7 +33,10 @@ def base_path(start: dict, target: dict, length, max_length: int, velocity: bool
     start: ``q`` (B, J, 4), ``r`` (B, 3) and, for the velocity path, ``qp`` (B, J, 4) the previous frame's local
     quaternions and ``v`` (B, 3) the root's displacement from the previous frame.  velocity: add the Hermite
     offset (module docstring; ``damping`` per frame, ``model.base_damping``) when ``start`` carries ``qp`` and
-    ``v``; otherwise the plain interpolation."""
+    ``v``; otherwise the plain interpolation.  A start keyframe that carries ``base_q`` (B, T1, J, 4) and
+    ``base_r`` (B, T1, 3) gives the path itself (``model.bank_base``)."""
+    if "base_q" in start:
+        return start["base_q"], start["base_r"]
     q, r = interpolation_path(start, target, length, max_length)
     if not (velocity and "qp" in start and "v" in start):
         return q, r

@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from inbetween_jax.models.scvae.bank import bank_enabled, blend
+from inbetween_jax.models.scvae.bank import bank_enabled, bank_needed, blend
 
 N_PAST = 10
 LENGTHS = (10, 30, 50)
@@ -67,15 +67,17 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
     rows = [r for r in baseline_table1(bench, x_mean, x_std, lengths, N_PAST) if r["method"] == "Slerp"]
     longest = None
     model_cfg = trained.cfg.model
-    use_bank = trained.bank is not None and bank_enabled(model_cfg)
+    use_bank, show_bank = (trained.bank is not None and f(model_cfg) for f in (bank_enabled, bank_needed))
     for length in lengths:
-        s = infer.sample_transitions(model_cfg, trained.state, bench, N_PAST, length, NUM_SAMPLES)
-        if use_bank:       # what the network and the bank each give alone, then the two blended
-            rows.append({"method": NETWORK_ALONE, "frames": length, "MMPE": None,
-                         **transition_metrics(bench, N_PAST, length, s["q"], s["r"], x_mean, x_std)})
+        s = infer.sample_transitions(model_cfg, trained.state, bench, N_PAST, length, NUM_SAMPLES, bank=trained.bank,
+                                     blend_bank=False)
+        if show_bank:      # what the bank gives alone (the base of model.bank_base, blended in by bank_weight)
             q, r = infer.bank_transitions(trained.bank, model_cfg, bench, N_PAST, length)
             rows.append({"method": bank_alone_name(model_cfg), "frames": length, "MMPE": None,
                          **transition_metrics(bench, N_PAST, length, q, r, x_mean, x_std)})
+        if use_bank:       # the network alone, then network and bank blended
+            rows.append({"method": NETWORK_ALONE, "frames": length, "MMPE": None,
+                         **transition_metrics(bench, N_PAST, length, s["q"], s["r"], x_mean, x_std)})
             s = dict(s, **dict(zip(("q", "r"), blend(s["q"], s["r"], q, r, model_cfg.bank_weight))))
         if length == max(lengths):
             longest = s
@@ -110,7 +112,7 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
                            variant=run_.preset)
                + flat_rows([r for r in official if r["method"] == velocity_baseline_name(trained.cfg.model)],
                            "official", data, model="slerp_velocity"))
-    for table, rs in (("table1", rows), ("official", official)) if use_bank else ():
+    for table, rs in (("table1", rows), ("official", official)) if show_bank else ():
         records += flat_rows([r for r in rs if r["method"] == NETWORK_ALONE], table, data, model="scvae",
                              variant=f"{run_.preset}, network alone")
         name = bank_alone_name(model_cfg)
@@ -156,20 +158,22 @@ def official_rows(trained, bench, x_mean, x_std, name: str) -> list:
                                                base_damping(trained.cfg.model))
         rows.append({"method": base, "frames": n,
                      **official_errors(bench, N_PAST, n, q, r, x_mean, x_std)})
-    use_bank = trained.bank is not None and bank_enabled(trained.cfg.model)
+    use_bank, show_bank = (trained.bank is not None and f(trained.cfg.model) for f in (bank_enabled, bank_needed))
 
     def mean_errors(n, qs, rs):           # over the samples
         per = [official_errors(bench, N_PAST, n, q, r, x_mean, x_std) for q, r in zip(qs, rs)]
         return {k: float(np.mean([p[k] for p in per])) for k in per[0]}
 
     for n in lengths:
-        s = infer.sample_transitions(trained.cfg.model, trained.state, bench, N_PAST, n, NUM_SAMPLES, velocity=True)
+        s = infer.sample_transitions(trained.cfg.model, trained.state, bench, N_PAST, n, NUM_SAMPLES, velocity=True,
+                                     bank=trained.bank, blend_bank=False)
         q, r = s["q"], s["r"]
-        if use_bank:
-            rows.append({"method": NETWORK_ALONE, "frames": n, **mean_errors(n, q, r)})
+        if show_bank:
             bq, br = infer.bank_transitions(trained.bank, trained.cfg.model, bench, N_PAST, n)
             rows.append({"method": bank_alone_name(trained.cfg.model), "frames": n,
                          **official_errors(bench, N_PAST, n, bq, br, x_mean, x_std)})
+        if use_bank:
+            rows.append({"method": NETWORK_ALONE, "frames": n, **mean_errors(n, q, r)})
             q, r = blend(q, r, bq, br, trained.cfg.model.bank_weight)
         rows.append({"method": name, "frames": n, **mean_errors(n, q, r)})
     order = {"Slerp": 0, base: 1, name: 2, bank_alone_name(trained.cfg.model): 3, NETWORK_ALONE: 4}
@@ -237,6 +241,7 @@ def val_score(run, source: str) -> float:
     lengths = [n for n in VAL_LENGTHS if n <= trained.cfg.data.trans_max]
     errs = []
     for n in lengths:
-        s = infer.sample_transitions(trained.cfg.model, trained.state, val, N_PAST, n, VAL_SAMPLES, velocity=True)
+        s = infer.sample_transitions(trained.cfg.model, trained.state, val, N_PAST, n, VAL_SAMPLES, velocity=True,
+                                     bank=trained.bank, blend_bank=False)
         errs.append(transition_metrics(val, N_PAST, n, s["q"], s["r"], x_mean, x_std)["L2P"])
     return float(np.mean(errs))

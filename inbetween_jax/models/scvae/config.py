@@ -43,6 +43,11 @@ Inference only, off in every preset: the transition bank (:mod:`inbetween_jax.mo
 k nearest training transitions, read from ``bank.npz`` in the run folder (``experiments/build_bank.py`` writes
 it and sets the switches).  It helps where the training motion covers the test motion (LaFAN1) and hurts on
 the CMU test subjects (docs/results/scvae.md, "Transition bank"), so the shipped CMU weights leave it off.
+``model.bank_base`` (with ``residual``; off in every preset) goes further and trains the network on top of the
+bank: its residual base is the bank's transition instead of Slerp / lerp.  In training each window's base comes
+from a bank of the training files without the window's own file (the run folder's ``bank.npz``, written when
+training starts), so the network learns to correct the retrieval it will get on unseen motion.  Measured on
+LaFAN1 at 3,000 steps it adds about 1 % to the bank alone and loses to the blend at 50 frames (docs/results/scvae.md).
 
 ``model.deferred_wgrad`` is a speed switch only (the largest weight gradients as one matmul after the scan, see
 :mod:`inbetween_jax.models.scvae.deferred_grads`); it does not change the losses.
@@ -95,6 +100,7 @@ class ModelConfig:
     bank_k: int = 0                # inference: blend in the mean of the k nearest bank transitions (0: off; .bank)
     bank_weight: float = 0.0       # inference: its weight (0: the network alone; 1: the bank alone)
     bank_tau: float = 0.0          # inference: > 0 weights the k by exp(-(d - d1) / (tau d1)); 0: uniform
+    bank_base: bool = False        # residual base = the bank's k-nearest transition (bank_k, bank_tau), not Slerp
 
     @property
     def uses_past_frame(self) -> bool:

@@ -99,6 +99,8 @@ class TrainData:
     stats: dict | None = None
     provenance: dict = dataclasses.field(default_factory=dict)
     extra: dict = dataclasses.field(default_factory=dict)
+    names: tuple = ()    # (N,) window names "<file stem>@<first frame>"
+    bank: object = None  # model.bank_base: the TransitionBank of the training files
 
     @classmethod
     def from_windows(cls, w, **meta) -> "TrainData":
@@ -106,7 +108,8 @@ class TrainData:
         pf = phase_labels(w.contacts)
         pb = phase_labels(w.reversed().contacts)[:, ::-1].copy()   # labelled on the reversed motion
         return cls(w.local_quats.astype(np.float32), w.root_pos.astype(np.float32), w.contacts.astype(np.float32),
-                   pf, pb, w.global_pose()[1], tuple(w.parents), w.skeleton, float(w.fps), **meta)
+                   pf, pb, w.global_pose()[1], tuple(w.parents), w.skeleton, float(w.fps),
+                   names=tuple(w.seq_names), **meta)
 
     def __len__(self):
         return self.q.shape[0]

@@ -20,7 +20,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from inbetween_jax.models.scvae import model as M
-from inbetween_jax.models.scvae.bank import BANK_FILE, TransitionBank, bank_enabled, blend, knn_transition
+from inbetween_jax.models.scvae.bank import (BANK_FILE, TransitionBank, bank_enabled, bank_needed, blend, knn_base_path,
+                                             knn_transition)
 from inbetween_jax.models.scvae.losses import fk_positions
 
 __all__ = ["MIN_FRAMES", "Trained", "load", "load_bank", "infill", "frame_range", "infill_between",
@@ -77,7 +78,7 @@ def load(run) -> Trained:
 
 
 def load_bank(run_dir: str, model_cfg, num_joints: int) -> TransitionBank | None:
-    """The run folder's transition bank when ``model_cfg`` turns it on (:func:`.bank.bank_enabled`), else None.
+    """The run folder's transition bank when ``model_cfg`` uses one (:func:`.bank.bank_needed`), else None.
 
     Raises:
         RunError: a negative or out-of-range setting, or the bank file missing, unreadable or on another skeleton.
@@ -87,9 +88,12 @@ def load_bank(run_dir: str, model_cfg, num_joints: int) -> TransitionBank | None
     if m.bank_k < 0 or not 0 <= m.bank_weight <= 1 or m.bank_tau < 0:
         raise RunError(f"{run_dir}: model.bank_k and model.bank_tau must not be negative and model.bank_weight must "
                        f"lie in 0..1 (got {m.bank_k}, {m.bank_tau}, {m.bank_weight})")
-    if not bank_enabled(m):
+    if not bank_needed(m):
         return None
-    bank = load_run_file(run_dir, BANK_FILE, TransitionBank.load, "model.bank_k")
+    if m.bank_k < 1:
+        raise RunError(f"{run_dir}: model.bank_base needs model.bank_k >= 1 (got {m.bank_k})")
+    need = "model.bank_base" if m.bank_base else "model.bank_k"
+    bank = load_run_file(run_dir, BANK_FILE, TransitionBank.load, need)
     if bank.num_joints != num_joints:
         raise RunError(f"{os.path.join(run_dir, BANK_FILE)}: the bank has {bank.num_joints} joints, the model "
                        f"{num_joints}")
@@ -117,18 +121,22 @@ def _sample_chunk(params, stats, start, target, keys, cfg, max_length, parents):
 
 
 def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_samples: int, seed: int = 0,
-                       chunk: int = 128, velocity: bool = False, bank: TransitionBank | None = None) -> dict:
+                       chunk: int = 128, velocity: bool = False, bank: TransitionBank | None = None,
+                       blend_bank: bool = True) -> dict:
     """Transitions between frame ``n_past - 1`` and frame ``n_past + n_trans`` of every window.
     ``velocity`` (models trained with ``start_velocity`` / ``base_velocity``, protocols with more than one past
     frame): the start keyframe carries frame ``n_past - 2`` (root displacement ``v``, local quaternions ``qp``).
     ``bank`` (with ``cfg.bank_k`` / ``cfg.bank_weight`` on): the samples are blended with the bank's
-    transition (:func:`.bank.blend`; mid_f / mid_b stay the network's).
+    transition (:func:`.bank.blend`; mid_f / mid_b stay the network's; ``blend_bank=False``: not blended); with
+    ``cfg.bank_base`` that transition is also the network's residual base (:func:`.bank.knn_base_path`).
 
     cfg: ModelConfig; state: train state (``params``, ``stats``).
     Returns q (S, B, n_trans, J, 4), r (S, B, n_trans, 3) and, for the bi-directional model, mid_f / mid_b
     (S, B, J, 3) raw forward / backward FK positions at the middle frame.
     """
     length = n_trans + 1
+    if cfg.bank_base and bank is None:
+        raise ValueError("this S-CVAE was trained on the transition bank's base (model.bank_base): pass its bank")
     keys = jax.random.split(jax.random.key(seed), num_samples)
     parts = []
     k0, k1 = n_past - 1, n_past + n_trans
@@ -139,12 +147,15 @@ def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_sampl
         if velocity and cfg.uses_past_frame and n_past >= 2:
             start["v"] = windows.root_pos[sl, k0] - windows.root_pos[sl, k0 - 1]
             start["qp"] = windows.local_quats[sl, k0 - 1]
+        if bank is not None and cfg.bank_base:
+            start["base_q"], start["base_r"] = knn_base_path(bank, start["q"], start["r"], target["q"], target["r"],
+                                                             length, length, cfg.bank_k, cfg.bank_tau)
         start = jax.tree.map(jnp.asarray, start)
         target = jax.tree.map(jnp.asarray, target)
         parts.append(jax.device_get(_sample_chunk(state["params"], state["stats"], start, target, keys, cfg,
                                                   length, tuple(windows.parents))))
     out = {k: np.concatenate([p[k] for p in parts], axis=1) for k in parts[0]}
-    if bank is not None and bank_enabled(cfg):
+    if bank is not None and bank_enabled(cfg) and blend_bank:
         kq, kr = bank_transitions(bank, cfg, windows, n_past, n_trans)
         out["q"], out["r"] = blend(out["q"], out["r"], kq, kr, cfg.bank_weight)
     return out
@@ -216,13 +227,16 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
     first = frame(0, start["c"])
     if trained.cfg.model.uses_past_frame and "qp" in start:
         first.update(_past_frame(start, yaw, cq[0, 0]))
+    m = trained.cfg.model
+    if trained.bank is not None and m.bank_base:      # the residual base, in the canonical space
+        first.update(zip(("base_q", "base_r"), map(jnp.asarray, knn_base_path(
+            trained.bank, cq[:, 0], cr[:, 0], cq[:, 1], cr[:, 1], frames + 1, frames + 1, m.bank_k, m.bank_tau))))
     keys = jax.random.split(jax.random.key(seed), num_samples)
     q, r = jax.device_get(_sample_pair(trained.params, trained.stats, first, frame(1, end["c"]),
                                        keys, trained.cfg.model, frames + 1))
     q, r = np.asarray(q, np.float64)[:, :frames + 2], np.asarray(r, np.float64)[:, :frames + 2]
     q[:, :, 0] = quat_mul(np.broadcast_to(yaw, q[:, :, 0].shape), q[:, :, 0])
     r = quat_rotate(np.broadcast_to(yaw, r.shape[:-1] + (4,)), r) + shift
-    m = trained.cfg.model
     if trained.bank is not None and bank_enabled(m):
         kq, kr, _ = knn_transition(trained.bank, qs[None], roots[:1], qe[None], roots[1:], frames, m.bank_k,
                                    m.bank_tau)

@@ -4,7 +4,8 @@
 Batch (dict of arrays; T1 = max_length + 1 frames in forward time, frames after ``length`` repeat the
 target keyframe): q (B, T1, J, 4), r (B, T1, 3), c (B, T1, 4), phase_f / phase_b (B, T1, 4) local-phase
 labels of the forward / reversed motion (both stored in forward time), p (B, T1, J, 3) global positions,
-length () int32 = frames between the two keyframes (L = transition length + 1).
+length () int32 = frames between the two keyframes (L = transition length + 1); with ``model.bank_base`` also
+base_q (B, T1, J, 4), base_r (B, T1, 3): the residual base from the bank (:func:`.bank.knn_base_path`).
 
 Train state: ``{"params": {"fwd", "bwd"}, "disc": {"long", "short"}, "opt_g", "opt_d", "stats"}`` (plain
 nested dicts of arrays; ``stats`` is :func:`~inbetween_jax.models.scvae.features.compute_stats`).
@@ -20,6 +21,7 @@ import optax
 
 from inbetween_jax.models.scvae import losses as L
 from inbetween_jax.models.scvae import model as M
+from inbetween_jax.models.scvae.bank import BANK_FILE, TransitionBank, knn_base_path
 from inbetween_jax.models.scvae.deferred_grads import add_deferred_weight_grads, make_taps
 from inbetween_jax.models.scvae.features import TrainData, compute_stats, dims
 from inbetween_jax.models.spec import Training
@@ -44,13 +46,20 @@ def load_data(cfg, source: str, split: str = "train") -> TrainData:
                          f"data.trans_max={cfg.data.trans_max} (at most {windows.window - 2})")
     ws = window_settings(source, split)
     forward = ws["forward_axis"] or tuple(windows.skeleton.forward_axis())
+    bank = None
+    if cfg.model.bank_base:
+        if not cfg.model.residual or cfg.model.bank_k < 1:
+            raise ValueError("model.bank_base needs model.residual=true and model.bank_k >= 1")
+        from inbetween_jax.data import load_motions
+        bank = TransitionBank.from_motions(load_motions(source, split), np.asarray(forward, np.float64))
+        bank.cache_lengths = cfg.data.trans_max + 1
     return TrainData.from_windows(
         windows, stats=compute_stats(windows),
         provenance={"source": source, "split": split,
                     "files": [os.path.basename(f) for f in split_files(source, split)],
                     "windows": len(windows), "window_frames": windows.window},
         extra={"lafan1": bool(is_lafan1(source)), "forward_axis": [float(x) for x in forward],
-               "contact_velfactor": float(ws["contact_velfactor"])})
+               "contact_velfactor": float(ws["contact_velfactor"])}, bank=bank)
 
 
 def make_training(cfg, data: TrainData) -> Training:
@@ -64,10 +73,14 @@ def make_training(cfg, data: TrainData) -> Training:
     src = data.provenance.get("source")
     describe = (f"{len(data)} windows of {data.q.shape[1]} frames{f' from {src}' if src else ''} ({num_joints} "
                 f"joints); transitions of {cfg.data.trans_start}..{cfg.data.trans_max} frames")
+    files = {}
+    if data.bank is not None:     # model.bank_base: the run folder keeps the bank its base came from
+        files[BANK_FILE] = data.bank.save
+        describe += f"; residual base: the {cfg.model.bank_k} nearest of {data.bank.num_frames} bank frames"
     return Training(init_fn=make_init_fn(cfg, stats, num_joints),
                     step_fn=make_train_step(cfg, data.parents, max_length),
                     batch_fn=batch_fn_factory(data, cfg), num_steps=cfg.train.num_steps, meta=meta,
-                    describe=describe)
+                    describe=describe, files=files)
 
 
 def transition_length(step: int, cfg, num_windows: int) -> int:
@@ -118,6 +131,8 @@ def batch_fn_factory(data: TrainData, cfg):
     batch_size = cfg.train.batch_size
 
     vel = cfg.model.uses_past_frame
+    bank = data.bank
+    own_clip = bank.clip_of([n.split("@", 1)[0] for n in data.names]) if bank is not None else None
 
     def batch_fn(step, key):
         seed = np.asarray(jax.random.key_data(key)).astype(np.uint64)
@@ -127,7 +142,13 @@ def batch_fn_factory(data: TrainData, cfg):
             length = int(rng.integers(cfg.data.trans_start + 1, length + 1))
         idx = rng.integers(0, len(data), batch_size)
         starts = rng.integers(int(vel), window - length, batch_size)
-        return make_batch(data, idx, starts, length, scan_length(length, cfg), vel)
+        batch = make_batch(data, idx, starts, length, scan_length(length, cfg), vel)
+        if bank is not None:      # the window's own file is never retrieved: the bank as on unseen motion
+            m = cfg.model
+            batch["base_q"], batch["base_r"] = knn_base_path(
+                bank, batch["q"][:, 0], batch["r"][:, 0], batch["q"][:, length], batch["r"][:, length], length,
+                batch["q"].shape[1] - 1, m.bank_k, m.bank_tau, exclude=own_clip[idx])
+        return batch
 
     return batch_fn
 
@@ -140,6 +161,8 @@ def split_batch(batch: dict):
     start = {"q": batch["q"][:, 0], "r": batch["r"][:, 0], "c": batch["c"][:, 0]}
     if "v0" in batch:
         start["v"], start["qp"] = batch["v0"], batch["qp0"]
+    if "base_q" in batch:     # model.bank_base: the residual decoder's base path
+        start["base_q"], start["base_r"] = batch["base_q"], batch["base_r"]
     target = {"q": take(batch["q"], length), "r": take(batch["r"], length), "c": take(batch["c"], length)}
     gt_f = {"q": batch["q"], "r": batch["r"], "c": batch["c"], "phase": batch["phase_f"], "p": batch["p"]}
     rev = jnp.clip(length - jnp.arange(t1), 0, t1 - 1)
