@@ -29,8 +29,8 @@ from inbetween_jax.geometry.kinematics import forward_kinematics, local_position
 from inbetween_jax.geometry.quaternion import quat_from_axis_angle, quat_inv, quat_mul, quat_normalize, quat_rotate
 from inbetween_jax.geometry.quaternion import quat_fix_sign_np, quat_slerp
 
-__all__ = ["BANK_FILE", "SWITCHES", "TransitionBank", "keyframe_space", "knn_transition", "knn_base_path", "blend",
-           "bank_enabled", "bank_needed"]
+__all__ = ["BANK_FILE", "SWITCHES", "TransitionBank", "keyframe_space", "knn_transition", "knn_base_path",
+           "pad_base_path", "blend", "bank_enabled", "bank_needed"]
 
 BANK_FILE = "bank.npz"
 SWITCHES = ("model.bank_k", "model.bank_weight", "model.bank_tau")     # inference only
@@ -266,6 +266,13 @@ def knn_base_path(bank: TransitionBank, start_q, start_r, tgt_q, tgt_r, length: 
     start_q, tgt_q (B, J, 4); start_r, tgt_r (B, 3).  Returns q (B, T1, J, 4), r (B, T1, 3) float32, T1 =
     max_length + 1, signs continuous from the start keyframe's."""
     q, r, _ = knn_transition(bank, start_q, start_r, tgt_q, tgt_r, length - 1, k, tau, exclude)
+    return pad_base_path(start_q, start_r, tgt_q, tgt_r, q, r, max_length)
+
+
+def pad_base_path(start_q, start_r, tgt_q, tgt_r, q, r, max_length: int):
+    """:func:`knn_base_path` from an in-between already found: q (B, L - 1, J, 4), r (B, L - 1, 3) between the
+    keyframes, framed by the start keyframe and the target (held to time max_length)."""
+    length = q.shape[1] + 1
     hold = max_length + 1 - length
     tq = _align(np.asarray(tgt_q, np.float64)[:, None], q[:, -1:])
     bq = np.concatenate([np.asarray(start_q, np.float64)[:, None], q, np.repeat(tq, hold, 1)], 1)

@@ -72,7 +72,7 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
         s = infer.sample_transitions(model_cfg, trained.state, bench, N_PAST, length, NUM_SAMPLES, bank=trained.bank,
                                      blend_bank=False)
         if show_bank:      # what the bank gives alone (the base of model.bank_base, blended in by bank_weight)
-            q, r = infer.bank_transitions(trained.bank, model_cfg, bench, N_PAST, length)
+            q, r = s["bank_q"], s["bank_r"]
             rows.append({"method": bank_alone_name(model_cfg), "frames": length, "MMPE": None,
                          **transition_metrics(bench, N_PAST, length, q, r, x_mean, x_std)})
         if use_bank:       # the network alone, then network and bank blended
@@ -169,7 +169,7 @@ def official_rows(trained, bench, x_mean, x_std, name: str) -> list:
                                      bank=trained.bank, blend_bank=False)
         q, r = s["q"], s["r"]
         if show_bank:
-            bq, br = infer.bank_transitions(trained.bank, trained.cfg.model, bench, N_PAST, n)
+            bq, br = s["bank_q"], s["bank_r"]
             rows.append({"method": bank_alone_name(trained.cfg.model), "frames": n,
                          **official_errors(bench, N_PAST, n, bq, br, x_mean, x_std)})
         if use_bank:

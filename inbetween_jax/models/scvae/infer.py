@@ -21,7 +21,7 @@ import numpy as np
 
 from inbetween_jax.models.scvae import model as M
 from inbetween_jax.models.scvae.bank import (BANK_FILE, TransitionBank, bank_enabled, bank_needed, blend, knn_base_path,
-                                             knn_transition)
+                                             knn_transition, pad_base_path)
 from inbetween_jax.models.scvae.losses import fk_positions
 
 __all__ = ["MIN_FRAMES", "Trained", "load", "load_bank", "infill", "frame_range", "infill_between",
@@ -128,7 +128,8 @@ def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_sampl
     frame): the start keyframe carries frame ``n_past - 2`` (root displacement ``v``, local quaternions ``qp``).
     ``bank`` (with ``cfg.bank_k`` / ``cfg.bank_weight`` on): the samples are blended with the bank's
     transition (:func:`.bank.blend`; mid_f / mid_b stay the network's; ``blend_bank=False``: not blended); with
-    ``cfg.bank_base`` that transition is also the network's residual base (:func:`.bank.knn_base_path`).
+    ``cfg.bank_base`` that transition is also the network's residual base (:func:`.bank.knn_base_path`).  The
+    bank is searched once; its transition is returned too (``bank_q`` (B, n_trans, J, 4), ``bank_r``).
 
     cfg: ModelConfig; state: train state (``params``, ``stats``).
     Returns q (S, B, n_trans, J, 4), r (S, B, n_trans, 3) and, for the bi-directional model, mid_f / mid_b
@@ -137,6 +138,9 @@ def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_sampl
     length = n_trans + 1
     if cfg.bank_base and bank is None:
         raise ValueError("this S-CVAE was trained on the transition bank's base (model.bank_base): pass its bank")
+    use_bank = bank is not None and bank_needed(cfg)
+    if use_bank:            # one search for the residual base and the blend
+        kq, kr = bank_transitions(bank, cfg, windows, n_past, n_trans)
     keys = jax.random.split(jax.random.key(seed), num_samples)
     parts = []
     k0, k1 = n_past - 1, n_past + n_trans
@@ -147,17 +151,18 @@ def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_sampl
         if velocity and cfg.uses_past_frame and n_past >= 2:
             start["v"] = windows.root_pos[sl, k0] - windows.root_pos[sl, k0 - 1]
             start["qp"] = windows.local_quats[sl, k0 - 1]
-        if bank is not None and cfg.bank_base:
-            start["base_q"], start["base_r"] = knn_base_path(bank, start["q"], start["r"], target["q"], target["r"],
-                                                             length, length, cfg.bank_k, cfg.bank_tau)
+        if use_bank and cfg.bank_base:
+            start["base_q"], start["base_r"] = pad_base_path(start["q"], start["r"], target["q"], target["r"],
+                                                             kq[sl], kr[sl], length)
         start = jax.tree.map(jnp.asarray, start)
         target = jax.tree.map(jnp.asarray, target)
         parts.append(jax.device_get(_sample_chunk(state["params"], state["stats"], start, target, keys, cfg,
                                                   length, tuple(windows.parents))))
     out = {k: np.concatenate([p[k] for p in parts], axis=1) for k in parts[0]}
-    if bank is not None and bank_enabled(cfg) and blend_bank:
-        kq, kr = bank_transitions(bank, cfg, windows, n_past, n_trans)
-        out["q"], out["r"] = blend(out["q"], out["r"], kq, kr, cfg.bank_weight)
+    if use_bank:
+        out["bank_q"], out["bank_r"] = kq, kr
+        if bank_enabled(cfg) and blend_bank:
+            out["q"], out["r"] = blend(out["q"], out["r"], kq, kr, cfg.bank_weight)
     return out
 
 
