@@ -68,6 +68,23 @@ def test_make_training_pieces_and_meta():
     assert set(metrics) == {"loss", "hole_l1", "mu"} and all(np.isfinite(float(v)) for v in metrics.values())
 
 
+def test_mirror_augmentation_in_batches():
+    """data.mirror: p = 1 returns the mirror images of the clips p = 0 draws (the same clips: runs without the
+    switch draw what they always drew), p = 0.5 mirrors some of a batch and not others."""
+    from inbetween_jax.models.cae.features import mirror_clips, mirror_rows
+    cfg = get_config("tiny")
+    data = load_data(cfg, "embedded")
+    plain = make_training(cfg, data).batch_fn(3, jax.random.key(7))["x"]
+    flipped = make_training(apply_overrides(cfg, ["data.mirror=1"]), data).batch_fn(3, jax.random.key(7))["x"]
+    perm, sign = mirror_rows(data.motions[0].skeleton)
+    np.testing.assert_allclose(flipped, mirror_clips(plain, perm, sign, data.bank.normalizer), atol=1e-5)
+    cfg8 = apply_overrides(cfg, ["data.mirror=0.5", "train.batch_size=16"])
+    b0 = make_training(apply_overrides(cfg8, ["data.mirror=0"]), data).batch_fn(0, jax.random.key(3))["x"]
+    b5 = make_training(cfg8, data).batch_fn(0, jax.random.key(3))["x"]
+    same = np.all(b0 == b5, axis=(1, 2))
+    assert 0 < same.sum() < 16
+
+
 def test_improved_switches_in_training():
     """The improved switches on real clips: evaluation-matched gaps switch on at the curriculum's end, the
     untrained residual model's loss is its pre-fill's (``model.fill=hermite``: the limited Hermite fill), and

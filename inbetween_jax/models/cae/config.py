@@ -51,6 +51,14 @@ Presets:
   them the full 1,600-step CMU run beats linear fill on its training clips (0.87x / 0.83x / 0.80x at 1 / 2 / 4 s)
   but is 1.81x / 1.47x / 1.27x worse than linear on the test subjects 13 / 14 (docs/results/cae.md): the
   correction it learns does not carry over, so the default stays at linear fill plus a negligible correction.
+
+  Also beyond the paper and off in every preset, both a left-right mirror of the representation
+  (:func:`~inbetween_jax.models.cae.features.mirror_rows`): ``data.mirror=p`` mirrors each training clip with
+  probability p, and ``model.mirror_average=true`` (inference only; ``ship_weights --set`` accepts it) returns
+  the mean of the fill and the un-mirrored fill of the mirrored clip, so the fill is mirror-equivariant.  They
+  matter only where the residual has learnt something (LaFAN1 with skips: 0.89x -> 0.87x linear at 4 s,
+  docs/results/cae.md); on the shipped CMU weights, which stay at their fill, the average moves the validation
+  score by 0.1 %.
 * ``tiny`` -- tests: tiny widths, 64-frame clips from 2 motions, batch 4, 2 steps per epoch, 8 steps.
 """
 from __future__ import annotations
@@ -77,6 +85,8 @@ class ModelConfig:
     paste_known: bool = False                   # output = input where mask = 1 (not the paper)
     skips: bool = False                         # U-Net skip connections, CAE variant only (not the paper)
     fill: str = "linear"                        # residual form's pre-fill: linear | hermite (not the paper)
+    mirror_average: bool = False                # inference: mean of the fill and the un-mirrored fill of the
+                                                # left-right mirrored clip (not the paper)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -103,6 +113,7 @@ class DataConfig:
     epoch_stride: int = 40       # clip stride that defines an epoch when steps_per_epoch = 0
     std_eps: float = 1e-3        # floor of the per-row std (rows that never vary, e.g. root x / z)
     max_motions: int = 0         # >0: use only the first N training motions (tests)
+    mirror: float = 0.0          # probability that a training clip is mirrored left-right (not the paper)
     mask: MaskConfig = MaskConfig()
 
 

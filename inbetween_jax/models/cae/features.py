@@ -24,7 +24,7 @@ from inbetween_jax.geometry.heading import rotate_about_up
 
 __all__ = ["num_features", "MotionFeatures", "smoothed_facing_yaw", "positions_to_features", "body_frame_features",
            "split_features", "body_positions", "integrate_root", "features_to_global", "to_global", "ClipBank",
-           "build_clip_bank"]
+           "build_clip_bank", "mirror_rows", "mirror_clips"]
 
 
 def num_features(num_joints: int) -> int:
@@ -116,6 +116,33 @@ def body_frame_features(motion, smooth: float = 4.0) -> MotionFeatures:
     feats = positions_to_features(gp, yaw)
     return MotionFeatures(feats, gp[0, 0, [0, 2]].astype(np.float64), float(yaw[0]), gp.astype(np.float32),
                           getattr(motion, "source", ""))
+
+
+def mirror_rows(skeleton) -> tuple:
+    """The left-right mirror of the representation as a signed row permutation: ``(perm (D,), sign (D,))`` with
+    ``mirrored[r] = sign[r] * features[perm[r]]`` (un-normalised).  The body frame's x axis is the character's
+    side, so a mirror negates every joint's x and swaps left and right joints (``Skeleton.mirror_map``, by name);
+    the root's side velocity ``vx`` and yaw velocity ``w`` change sign, ``vz`` does not.
+
+    Raises:
+        UserError: the skeleton has no left/right joint pair by name (a mirror would not be a body).
+    """
+    from inbetween_jax.errors import UserError
+    twin = np.asarray(skeleton.mirror_map(), np.int64)
+    if np.all(twin == np.arange(len(twin))):
+        raise UserError("mirroring needs left/right joints named Left*/Right* (or l*/r*); this skeleton has none")
+    j = len(twin)
+    perm = np.concatenate([(3 * twin[:, None] + np.arange(3)[None]).reshape(-1), 3 * j + np.arange(3)])
+    sign = np.concatenate([np.tile([-1.0, 1.0, 1.0], j), [-1.0, 1.0, -1.0]])
+    return perm, sign.astype(np.float32)
+
+
+def mirror_clips(x_norm, perm, sign, normalizer: Normalizer):
+    """Normalised clip images (..., D, T) of the mirrored motion (:func:`mirror_rows`); NumPy or jax arrays.
+    An involution: mirroring twice returns the input (up to float rounding)."""
+    mean, std = np.asarray(normalizer.mean)[:, None], np.asarray(normalizer.std)[:, None]
+    raw = x_norm[..., perm, :] * std[perm] + mean[perm]
+    return (sign[:, None] * raw - mean) / std
 
 
 def split_features(x, num_joints: int):

@@ -24,7 +24,8 @@ from inbetween_jax.geometry import forward_kinematics, quat_slerp
 from inbetween_jax.geometry.fit import fit_rotations
 from inbetween_jax.models.cae import model as cae_model
 from inbetween_jax.models.cae.config import Config
-from inbetween_jax.models.cae.features import body_frame_features, body_positions, num_features, to_global
+from inbetween_jax.models.cae.features import (body_frame_features, body_positions, mirror_clips, mirror_rows,
+                                               num_features, to_global)
 from inbetween_jax.models.cae.masks import (add_position_noise, dropout_mask, frame_mask_image, gap_frames,
                                             gap_ranges, joints_mask)
 from inbetween_jax.models.spec import InfillResult
@@ -42,7 +43,16 @@ class TrainedCAE:
                  step: int):
         self.params, self.cfg, self.normalizer, self.skeleton, self.step = params, cfg, normalizer, skeleton, step
         self.num_joints = int(num_joints)
-        self._apply = jax.jit(functools.partial(cae_model.apply, cfg=cfg))
+        apply = functools.partial(cae_model.apply, cfg=cfg)
+        if cfg.model.mirror_average:
+            perm, sign = mirror_rows(skeleton)
+            mirror = functools.partial(mirror_clips, perm=perm, sign=sign, normalizer=normalizer)
+            plain = apply
+
+            def apply(params, x, mask):     # noqa: F811 -- the fill averaged with its mirror image's
+                m = mask[..., perm, :]
+                return 0.5 * (plain(params, x, mask=mask) + mirror(plain(params, mirror(x) * m, mask=m)))
+        self._apply = jax.jit(apply)
 
     def predict(self, x_norm, mask=None):
         x = jnp.asarray(x_norm, jnp.float32)

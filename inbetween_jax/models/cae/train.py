@@ -23,7 +23,8 @@ import optax
 
 from inbetween_jax.data import load_motions
 from inbetween_jax.models.cae import model
-from inbetween_jax.models.cae.features import ClipBank, body_frame_features, build_clip_bank
+from inbetween_jax.models.cae.features import (ClipBank, body_frame_features, build_clip_bank, mirror_clips,
+                                               mirror_rows)
 from inbetween_jax.models.cae.losses import masked_l1, weighted_l1
 from inbetween_jax.models.cae.masks import curriculum_end_epoch, curriculum_mu, training_mask
 from inbetween_jax.models.spec import Training
@@ -121,10 +122,18 @@ def make_training(cfg, data: ClipData) -> Training:
         return {"params": params, "opt_state": opt_state}, {"loss": loss, "hole_l1": masked_l1(y, x, mask), "mu": mu}
 
     n = len(bank.starts)
+    p_mirror = float(cfg.data.mirror)
+    if p_mirror > 0 or cfg.model.mirror_average:    # a rig without left/right names fails now, not at the end
+        mirror_rows(data.motions[0].skeleton)
+    mirror = mirror_rows(data.motions[0].skeleton) if p_mirror > 0 else None
 
     def batch_fn(step, key):
         idx = np.asarray(jax.random.randint(key, (bsz,), 0, n))
-        return {"x": bank.clips(idx), "mu": np.float32(epoch_mu(cfg, step // spe)),
+        x = bank.clips(idx)
+        if mirror is not None:     # its own key, so runs without mirroring draw the clips they always drew
+            flip = np.asarray(jax.random.bernoulli(jax.random.fold_in(key, 1), p_mirror, (bsz,)))
+            x[flip] = mirror_clips(x[flip], *mirror, bank.normalizer).astype(np.float32)
+        return {"x": x, "mu": np.float32(epoch_mu(cfg, step // spe)),
                 "matched": np.float32(epoch_matched(cfg, step // spe))}
 
     motions = data.motions
