@@ -213,15 +213,22 @@ def test_validation_selection(tmp_path):
 
 @pytest.mark.slow
 def test_bench_quick_runs(tmp_path):
-    """The bench finds one run per variant under a folder of run folders and fills both tables."""
+    """The bench finds every run under a folder of run folders (one row each) and fills both tables."""
     from inbetween_jax.models.cae import bench
     runs = tmp_path / "runs" / "cae"
     for variant in ("holden1d", "vanilla", "cae"):
         _train(runs / variant, [f"model.variant={variant}", "train.num_steps=3"])
     _train(runs / "improved", ["model.residual=true", "model.paste_known=true", "train.num_steps=1"])
+    _train(runs / "improved_mirror", ["model.residual=true", "model.paste_known=true", "train.num_steps=2",
+                                      "model.mirror_average=true"])
     r = bench.run("embedded", str(tmp_path / "results"), str(runs), quick=True)
-    assert r["steps"] == {"holden1d": 3, "vanilla": 3, "cae": 3, "cae_residual": 1}
-    assert set(r["table1"]) == {"linear", "hermite", "holden1d", "vanilla", "cae", "cae_residual"}
+    # a second run of one variant gets its own row, keyed and labelled by its folder
+    assert r["steps"] == {"holden1d": 3, "vanilla": 3, "cae": 3, "cae_residual": 1, "cae_residual:improved_mirror": 2}
+    assert list(r["table1"]) == ["linear", "hermite", "holden1d", "vanilla", "cae", "cae_residual",
+                                 "cae_residual:improved_mirror"]
+    assert "| CAE, residual (improved) [improved_mirror] |" in r["markdown"]
+    assert {x["variant"] for x in r["rows"] if x["model"] == "cae"} == {
+        "holden1d", "vanilla", "cae", "cae_residual", "cae_residual:improved_mirror"}
     tm = r["time_matched"]
     assert [v["frames"] for v in tm["linear"]["gaps"].values()] == [30, 60, 120] and tm["linear"]["recon"] is None
     assert tm["cae_residual"]["recon"][0] == 0.0                         # known entries pasted back
@@ -231,7 +238,7 @@ def test_bench_quick_runs(tmp_path):
     assert len(ratio) == 1 and 0.5 < ratio[0]["value"] < 1.5 and "Time-matched gaps" in r["markdown"]
     assert r["table1"]["linear"][0] is None and all(len(v) == 3 for v in r["table1"].values())
     assert set(r["table2"]["cae"]) == {"sigma=1.0", "sigma=1.5", "p=0.3", "p=0.5"}
-    assert set(r["bones"]) == {"holden1d", "vanilla", "cae", "cae_residual"}
+    assert set(r["bones"]) == {"holden1d", "vanilla", "cae", "cae_residual", "cae_residual:improved_mirror"}
     assert os.path.isfile(tmp_path / "results" / "cae_bench.md")
     assert "| Linear interpolation | n/a |" in r["markdown"]
     # the Hermite fill is a baseline row beside linear fill: no reconstruction / bones, a ratio to linear

@@ -7,8 +7,10 @@ limited cubic Hermite fill (:func:`inbetween_jax.baselines.hermite_fill`, not in
 
 ``run(source, results_dir, run_dir, quick)``: ``run_dir`` is a CAE run folder, a folder of run folders
 (e.g. ``runs/cae`` holding ``cae/``, ``vanilla/``, ``holden1d/``) or both (a run folder whose sub-folders
-are runs); every CAE run found is evaluated, one per method key: ``model.variant``, plus ``_residual`` for
-a run with ``model.residual`` (``cae_residual``: the ``improved`` preset) -- the first in name order.  The protocol is :mod:`inbetween_jax.evaluation.infilling`;
+are runs); every CAE run found is evaluated under a method key: ``model.variant``, plus ``_residual`` for
+a run with ``model.residual`` (``cae_residual``: the ``improved`` preset); a second run of the same key (in
+name order) is keyed ``KEY:FOLDER`` and labelled with its folder name, so runs that differ only in switches
+share one table.  The protocol is :mod:`inbetween_jax.evaluation.infilling`;
 ``quick`` evaluates the first 8 test clips only.  Writes ``cae_bench.json`` / ``cae_bench.md`` under
 ``results_dir``.
 """
@@ -38,7 +40,8 @@ __all__ = ["find_runs", "run", "val_score"]
 
 def find_runs(run_dir: str | None) -> dict:
     """``{method key: Run}`` of the CAE runs (with a checkpoint) in ``run_dir`` or its sub-folders; the key
-    is the run's ``model.variant``, with ``_residual`` appended when ``model.residual`` is on."""
+    is the run's ``model.variant``, with ``_residual`` appended when ``model.residual`` is on, and
+    ``:FOLDER`` appended for every further run of a key already taken (folders in name order)."""
     from inbetween_jax.train.run import RunError, load_run
     if not run_dir or not os.path.isdir(run_dir):
         return {}
@@ -52,8 +55,15 @@ def find_runs(run_dir: str | None) -> dict:
             continue
         if r.model == "cae":
             m = r.config.get("model", {})
-            runs.setdefault(m.get("variant", "cae") + ("_residual" if m.get("residual") else ""), r)
+            key = m.get("variant", "cae") + ("_residual" if m.get("residual") else "")
+            runs[key if key not in runs else f"{key}:{os.path.basename(os.path.normpath(d))}"] = r
     return runs
+
+
+def _label(method: str) -> str:
+    """The table label of a method key (``KEY:FOLDER`` for a further run of ``KEY``)."""
+    key, _, folder = method.partition(":")
+    return LABELS[key] + (f" [{folder}]" if folder else "")
 
 
 def _fmt(ms):
@@ -89,7 +99,7 @@ def run(source: str | None, results_dir: str, run_dir: str | None, quick: bool =
                              "joints); pass the matching --source")
     x = proto.test_clips(motions, norm, limit=8 if quick else None)
     corrupt = proto.corruptions(x, j)
-    methods = list(BASELINES) + [v for v in VARIANT_ORDER if v in models]
+    methods = list(BASELINES) + sorted(models, key=lambda v: (VARIANT_ORDER.index(v.partition(":")[0]), v))
     predictors = {meth: _baseline(meth) if meth in BASELINES else
                   (lambda inp, mask, m=models[meth]: fill(m, inp, mask)) for meth in methods}
     tables = {}
@@ -208,18 +218,18 @@ def _markdown(r, methods) -> str:
     tm = []
     for m in methods:
         g = r["time_matched"][m]["gaps"]
-        row = {"Model": LABELS[m], tm_cols[0]: _fmt(r["time_matched"][m]["recon"])}
+        row = {"Model": _label(m), tm_cols[0]: _fmt(r["time_matched"][m]["recon"])}
         for s, c in zip(secs, tm_cols[1:]):
             ratio = "" if m == "linear" else f" [x{g[s]['err'][0] / lin[s]['err'][0]:.2f}]"
             row[c] = _fmt(g[s]["err"]) + ratio
         tm.append(row)
-    t1 = [{"Model": LABELS[m], **{f"{g} Frames": _fmt(v) for g, v in zip((0, 60, 120), r["table1"][m])},
-           "paper 0 / 60 / 120": " / ".join(PAPER_T1[m.split("_")[0]])} for m in methods]
-    t1s = [{"Model": LABELS[m], **{f"{g} Frames": _fmt(v) for g, v in zip((0, 30, 60), r["table1_seconds"][m])}}
+    t1 = [{"Model": _label(m), **{f"{g} Frames": _fmt(v) for g, v in zip((0, 60, 120), r["table1"][m])},
+           "paper 0 / 60 / 120": " / ".join(PAPER_T1[m.partition(":")[0].split("_")[0]])} for m in methods]
+    t1s = [{"Model": _label(m), **{f"{g} Frames": _fmt(v) for g, v in zip((0, 30, 60), r["table1_seconds"][m])}}
            for m in methods]
     keys = [f"sigma={s}" for s in SIGMAS] + [f"p={p}" for p in PS]
-    t2 = [{"Model": LABELS[m], **{k: _fmt(r["table2"][m][k]) for k in keys}} for m in methods]
-    bones = [{"Model": LABELS[m], "median - GT median": b["mean_abs_median_dev_cm"], "std": b["mean_std_cm"],
+    t2 = [{"Model": _label(m), **{k: _fmt(r["table2"][m][k]) for k in keys}} for m in methods]
+    bones = [{"Model": _label(m), "median - GT median": b["mean_abs_median_dev_cm"], "std": b["mean_std_cm"],
               "IQR": b["mean_iqr_cm"], "GT std": b["gt_mean_std_cm"]} for m, b in r["bones"].items()]
     parts = [
         f"CAE benchmark -- {r['note']}; data: {r['source']} test split ({', '.join(r['test_files'])}), "
