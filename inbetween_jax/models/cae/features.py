@@ -20,6 +20,7 @@ from typing import Sequence
 import numpy as np
 
 from inbetween_jax.data.features import Normalizer
+from inbetween_jax.data.filters import gaussian_lowpass
 from inbetween_jax.geometry.heading import rotate_about_up
 
 __all__ = ["num_features", "MotionFeatures", "smoothed_facing_yaw", "positions_to_features", "body_frame_features",
@@ -83,11 +84,7 @@ def smoothed_facing_yaw(global_pos: np.ndarray, skeleton, smooth: float = 4.0) -
     across = sum(gp[:, a] - gp[:, b] for a, b in _side_joints(skeleton))
     fwd = np.stack([-across[:, 2], across[:, 0]], axis=-1)            # (fx, fz) = across x (0, 1, 0)
     if smooth > 0 and len(fwd) > 1:
-        r = int(3 * smooth)
-        k = np.exp(-0.5 * (np.arange(-r, r + 1) / smooth) ** 2)
-        k /= k.sum()
-        pad = np.pad(fwd, ((r, r), (0, 0)), mode="edge")
-        fwd = np.stack([np.convolve(pad[:, i], k, mode="valid") for i in range(2)], axis=-1)
+        fwd = gaussian_lowpass(fwd, smooth, 0, np.float64)
     return np.arctan2(fwd[:, 0], fwd[:, 1])
 
 

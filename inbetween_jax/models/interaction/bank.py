@@ -25,6 +25,7 @@ import os
 
 import numpy as np
 
+from inbetween_jax.data.filters import gaussian_lowpass
 from inbetween_jax.errors import UserError
 from inbetween_jax.metrics.foot import SKATING_HEIGHT_CM
 from inbetween_jax.models.interaction.features import keyframe_sample
@@ -128,18 +129,6 @@ class MotionBank:
             raise UserError(f"motion bank: no take is long enough for a {gap}-frame gap "
                             f"({length} frames with the context)")
         return starts
-
-
-def gaussian_lowpass(x, sigma: float, axis: int):
-    """``x`` filtered along ``axis`` by a normalised Gaussian of ``sigma`` frames, truncated at 3 sigma, the
-    edge frames repeated beyond the ends."""
-    r = int(np.ceil(3 * sigma))
-    k = np.exp(-0.5 * (np.arange(-r, r + 1) / sigma) ** 2)
-    k /= k.sum()
-    x = np.moveaxis(np.asarray(x, np.float64), axis, -1)
-    pad = np.concatenate([np.repeat(x[..., :1], r, -1), x, np.repeat(x[..., -1:], r, -1)], -1)
-    out = sum(w * pad[..., i:i + x.shape[-1]] for i, w in enumerate(k))
-    return np.moveaxis(out, -1, axis).astype(np.float32)
 
 
 def match_features(context, keypose) -> np.ndarray:
