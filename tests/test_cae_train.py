@@ -211,6 +211,22 @@ def test_validation_selection(tmp_path):
     assert abs(ratio - 1.0) > 1e-3
 
 
+def test_failed_selection_leaves_the_latest_step_and_says_how_to_select(tmp_path, monkeypatch):
+    """When the validation score cannot be computed, training still finishes, the run opens at its latest
+    checkpoint and the log says which command selects later."""
+    from inbetween_jax.models.cae import bench
+
+    def no_windows(run, source):
+        raise ValueError("validation motion too short")
+    monkeypatch.setattr(bench, "val_score", no_windows)
+    lines = []
+    run_dir, _ = train_model("cae", "tiny", ["train.num_steps=2", "train.ckpt_every=1", "train.split=fit"],
+                             source="embedded", run_dir=str(tmp_path / "run"), progress=False, log=lines.append)
+    said = [x for x in lines if "selection skipped" in x]
+    assert len(said) == 1 and "too short" in said[0] and f"select_checkpoint.py {run_dir}" in said[0]
+    assert not os.path.exists(os.path.join(run_dir, "selection.json")) and load_run(run_dir).step == 2
+
+
 @pytest.mark.slow
 def test_bench_quick_runs(tmp_path):
     """The bench finds every run under a folder of run folders (one row each) and fills both tables."""
