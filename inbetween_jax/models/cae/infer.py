@@ -45,18 +45,21 @@ class TrainedCAE:
         self.num_joints = int(num_joints)
         apply = functools.partial(cae_model.apply, cfg=cfg)
         if cfg.model.mirror_average:
-            perm, sign = mirror_rows(skeleton)
-            mirror = functools.partial(mirror_clips, perm=perm, sign=sign, normalizer=normalizer)
-            plain = apply
-
-            def apply(params, x, mask):     # noqa: F811 -- the fill averaged with its mirror image's
-                m = mask[..., perm, :]
-                return 0.5 * (plain(params, x, mask=mask) + mirror(plain(params, mirror(x) * m, mask=m)))
+            apply = functools.partial(_mirror_averaged, apply, mirror_rows(skeleton), normalizer)
         self._apply = jax.jit(apply)
 
     def predict(self, x_norm, mask=None):
         x = jnp.asarray(x_norm, jnp.float32)
         return self._apply(self.params, x, mask=jnp.ones_like(x) if mask is None else jnp.asarray(mask, jnp.float32))
+
+
+def _mirror_averaged(apply, mirror, normalizer, params, x, mask):
+    """``model.mirror_average``: the mean of ``apply``'s fill of ``x`` and the un-mirrored fill of the mirrored
+    clip; mirror: :func:`~inbetween_jax.models.cae.features.mirror_rows`."""
+    perm, sign = mirror
+    m = mask[..., perm, :]
+    flipped = apply(params, mirror_clips(x, perm, sign, normalizer) * m, mask=m)
+    return 0.5 * (apply(params, x, mask=mask) + mirror_clips(flipped, perm, sign, normalizer))
 
 
 def load(run: Run) -> TrainedCAE:

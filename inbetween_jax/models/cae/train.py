@@ -123,14 +123,13 @@ def make_training(cfg, data: ClipData) -> Training:
 
     n = len(bank.starts)
     p_mirror = float(cfg.data.mirror)
-    if p_mirror > 0 or cfg.model.mirror_average:    # a rig without left/right names fails now, not at the end
-        mirror_rows(data.motions[0].skeleton)
-    mirror = mirror_rows(data.motions[0].skeleton) if p_mirror > 0 else None
+    # built whenever a switch mirrors, so a rig without left/right names fails now, not at the end of training
+    mirror = mirror_rows(data.motions[0].skeleton) if p_mirror > 0 or cfg.model.mirror_average else None
 
     def batch_fn(step, key):
         idx = np.asarray(jax.random.randint(key, (bsz,), 0, n))
         x = bank.clips(idx)
-        if mirror is not None:     # its own key, so runs without mirroring draw the clips they always drew
+        if p_mirror > 0:           # its own key, so runs without mirroring draw the clips they always drew
             flip = np.asarray(jax.random.bernoulli(jax.random.fold_in(key, 1), p_mirror, (bsz,)))
             x[flip] = mirror_clips(x[flip], *mirror, bank.normalizer).astype(np.float32)
         return {"x": x, "mu": np.float32(epoch_mu(cfg, step // spe)),
