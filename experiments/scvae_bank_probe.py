@@ -1,7 +1,7 @@
 """The S-CVAE transition bank on its own or blended with a run's network: Table-1 rows against Slerp.
 
     python experiments/scvae_bank_probe.py SOURCE [--bank fit] [--windows val] [--k 16,32,64] [--tau 0,0.5]
-        [--weights 1,0.75] [--run RUN_DIR [--samples 2]]
+        [--weights 1,0.75] [--run RUN_DIR [--samples 2]] [--mirror]
 
 Builds a :class:`~inbetween_jax.models.scvae.bank.TransitionBank` from the ``--bank`` split of SOURCE (``fit``:
 the training files without the validation ones; ``train``: all training files) and scores, on the ``--windows``
@@ -10,7 +10,7 @@ transitions mixed with Slerp's by each weight (1: the bank's alone), for every k
 Table-1 layout (one past keyframe; L2P, L2Q, NPSS at 10 / 30 / 50 frames).  Bank settings are chosen with
 ``--bank fit --windows val``, never on the test windows.  With ``--run`` the run's network samples (``--samples``
 of them; on this bank's base if the run was trained with ``model.bank_base``) take Slerp's place in the blend, so
-weight 0 is the network alone.
+weight 0 is the network alone.  ``--mirror``: the bank holds each motion's mirror image as well.
 """
 from __future__ import annotations
 
@@ -31,6 +31,7 @@ def main(argv=None) -> int:
     ap.add_argument("--weights", default="1,0.75")
     ap.add_argument("--run", default=None, help="an S-CVAE run folder: blend its samples instead of Slerp")
     ap.add_argument("--samples", type=int, default=2)
+    ap.add_argument("--mirror", action="store_true", help="the bank holds each motion's mirror image too")
     a = ap.parse_args(argv)
     from inbetween_jax.baselines import interpolate_transition
     from inbetween_jax.data import l2p_stats, load_dataset, load_motions, resolve_source
@@ -41,7 +42,7 @@ def main(argv=None) -> int:
     source = resolve_source(a.source)
     motions = load_motions(source, a.bank)
     fa = window_settings(source, "train")["forward_axis"] or motions[0].skeleton.forward_axis()
-    bank = TransitionBank.from_motions(motions, np.asarray(fa, np.float64))
+    bank = TransitionBank.from_motions(motions, np.asarray(fa, np.float64), mirror=a.mirror)
     windows = (load_dataset(source, "benchmark") if a.windows == "benchmark"
                else load_dataset(source, "val", window=65, offset=20))
     x_mean, x_std = l2p_stats(load_dataset(source, "train").global_pose()[1])

@@ -14,7 +14,9 @@ import pytest
 from inbetween_jax.data import load_dataset, load_motions
 from inbetween_jax.errors import UserError
 from inbetween_jax.geometry.quaternion import quat_from_axis_angle, quat_mul, quat_rotate
-from inbetween_jax.models.scvae.bank import BANK_FILE, TransitionBank, bank_enabled, blend, knn_transition
+from inbetween_jax.geometry.mirror import mirror_pose, rest_side_axis
+from inbetween_jax.models.scvae.bank import (BANK_FILE, MIRROR_TAG, TransitionBank, bank_enabled, blend,
+                                            knn_transition)
 from inbetween_jax.train.run import RunError
 
 L = 20
@@ -173,6 +175,16 @@ def test_build_bank_script_writes_the_bank_and_the_switches(tmp_path, capsys):
     assert meta["config"]["model"]["bank_k"] == 8 and meta["config"]["model"]["bank_weight"] == 0.5
     bank = TransitionBank.load(os.path.join(run_dir, BANK_FILE))
     assert bank.num_frames == meta["bank"]["frames"] and len(bank.names) == len(load_motions("embedded", "train"))
+    assert meta["bank"]["mirror"] is False
+    inter = str(tmp_path / "interaction")          # the mirror is an S-CVAE bank's only
+    shutil.copytree(shipped_dir("interaction"), inter, ignore=shutil.ignore_patterns("bank.npz"))
+    assert script.main([inter, "--mirror"]) == 2 and "S-CVAE banks only" in capsys.readouterr().err
+    assert not os.path.exists(os.path.join(inter, "bank.npz"))
+    assert script.main([run_dir, "--source", "embedded", "--split", "train", "--mirror"]) == 0
+    meta = json.load(open(os.path.join(run_dir, "run.json")))
+    mirrored = TransitionBank.load(os.path.join(run_dir, BANK_FILE))
+    assert meta["bank"]["mirror"] is True and meta["config"]["model"]["bank_k"] == 8     # switches kept
+    assert mirrored.num_frames == 2 * bank.num_frames and mirrored.names[len(bank.names)].endswith(MIRROR_TAG)
 
 
 def test_transitions_that_spin_are_not_candidates():
@@ -274,3 +286,30 @@ def test_bank_base_training_writes_its_bank_and_an_untrained_model_returns_the_b
     os.remove(os.path.join(run_dir, BANK_FILE))
     with pytest.raises(RunError, match="needs bank.npz"):
         infer.load(load_run(run_dir))
+
+
+def test_a_mirrored_bank_holds_each_clip_and_its_mirror_image():
+    """``mirror=True``: the mirror image of a bank transition is found in the bank exactly (it is one of the
+    mirrored clips), and a query left out of its own clip is left out of that clip's mirror image too."""
+    motions = load_motions("embedded", "train")[:6]
+    fa = motions[0].skeleton.forward_axis()
+    bank = TransitionBank.from_motions(motions, fa, stride=3, mirror=True)
+    c = len(motions)
+    assert len(bank.names) == 2 * c and bank.names[c].endswith(MIRROR_TAG)
+    assert bank.num_frames == 2 * sum(m.num_frames for m in motions)
+    assert list(bank.source_clips) == list(range(c)) * 2
+    assert list(bank.clip_of([bank.names[0], bank.names[c]])) == [0, c]
+    q, r = _bank_transition(TransitionBank.from_motions(motions, fa, stride=3), 5)
+    twin = motions[0].skeleton.mirror_map()
+    mq, mr = mirror_pose(q, r, twin, rest_side_axis(motions[0].skeleton.offsets, twin))
+    kq, kr, dist = _knn(bank, mq, mr)
+    assert dist[0] < 1e-3
+    np.testing.assert_allclose(kr[0], mr[1:-1], atol=1e-3)
+    assert np.abs(np.sum(kq[0] * mq[1:-1], -1)).min() > 1 - 1e-5
+    own = int(np.searchsorted(bank.clip_starts, bank.index(L)[0][5], side="right") - 1)
+    _, _, dist = knn_transition(bank, mq[None, 0], mr[None, 0], mq[None, -1], mr[None, -1], L, 1, 0.0,
+                                exclude=np.array([own]))
+    assert dist[0] > 1e-2
+    flat = dataclasses.replace(motions[0].skeleton, names=tuple(f"j{i}" for i in range(len(twin))))
+    with pytest.raises(UserError, match="mirror"):
+        TransitionBank.from_motions([dataclasses.replace(motions[0], skeleton=flat)], fa, mirror=True)

@@ -61,6 +61,17 @@ class Motion:
                                    local_pos=self.local_pos[start:stop:step],
                                    frame_time=self.frame_time * step)
 
+    def mirrored(self, world_axis: int = 0) -> "Motion":
+        """The left-right mirror image in the world plane with normal ``world_axis`` (a floor axis): left and
+        right joints (``Skeleton.mirror_map``) swap, every position is reflected
+        (:func:`inbetween_jax.geometry.mirror.mirror_pose`).  Raises ValueError (one line) on a rig without
+        left/right joints or whose rest pose is not symmetric."""
+        from inbetween_jax.geometry.mirror import mirror_pose, rest_side_axis
+        twin = self.skeleton.mirror_map()
+        axis = rest_side_axis(self.skeleton.offsets, twin)
+        q, _, lp = mirror_pose(self.local_quats, self.root_pos, twin, axis, world_axis, self.local_pos)
+        return dataclasses.replace(self, local_quats=q, local_pos=lp)
+
     def scaled(self, factor: float) -> "Motion":
         """The same motion in another length unit: bone offsets and local positions times ``factor``."""
         return dataclasses.replace(self, local_pos=self.local_pos * factor,

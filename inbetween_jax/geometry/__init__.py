@@ -8,3 +8,4 @@ from inbetween_jax.geometry.kinematics import (  # noqa: F401
     bone_lengths, forward_kinematics, inverse_kinematics, local_positions)
 from inbetween_jax.geometry.dct import dct, dct_matrix, idct  # noqa: F401
 from inbetween_jax.geometry.fit import fit_rotations  # noqa: F401
+from inbetween_jax.geometry.mirror import mirror_pose, rest_side_axis  # noqa: F401

@@ -29,12 +29,13 @@ from inbetween_jax.geometry.kinematics import forward_kinematics, local_position
 from inbetween_jax.geometry.quaternion import quat_from_axis_angle, quat_inv, quat_mul, quat_normalize, quat_rotate
 from inbetween_jax.geometry.quaternion import quat_fix_sign_np, quat_slerp
 
-__all__ = ["BANK_FILE", "SWITCHES", "TransitionBank", "keyframe_space", "knn_transition", "knn_base_path",
-           "pad_base_path", "blend", "bank_enabled", "bank_needed"]
+__all__ = ["BANK_FILE", "SWITCHES", "MIRROR_TAG", "TransitionBank", "keyframe_space", "knn_transition",
+           "knn_base_path", "pad_base_path", "blend", "bank_enabled", "bank_needed"]
 
 BANK_FILE = "bank.npz"
 SWITCHES = ("model.bank_k", "model.bank_weight", "model.bank_tau")     # inference only
 CACHED_LENGTHS = 8        # transition lengths whose match features a bank keeps (about 30 MB each for CMU)
+MIRROR_TAG = " (mirrored)"  # the name suffix of a clip's mirror image in a bank built with ``mirror=True``
 QUERY_CHUNK = 64          # queries warped at once (memory: chunk x k x frames x joints x 4)
 MAX_TURN = np.pi          # bank transitions whose root turns further than this (radians) are not candidates
 
@@ -58,16 +59,21 @@ class TransitionBank:
     _facing: np.ndarray | None = dataclasses.field(default=None, repr=False, compare=False)
 
     @classmethod
-    def from_motions(cls, motions, forward_axis, stride: int = 2) -> "TransitionBank":
-        """A bank of :class:`~inbetween_jax.data.Motion` s on one skeleton (and one frame rate)."""
+    def from_motions(cls, motions, forward_axis, stride: int = 2, mirror: bool = False) -> "TransitionBank":
+        """A bank of :class:`~inbetween_jax.data.Motion` s on one skeleton (and one frame rate); ``mirror``: each
+        motion's left-right mirror image (:meth:`~inbetween_jax.data.Motion.mirrored`) too, named with
+        :data:`MIRROR_TAG`.  Raises UserError (one line): no motions, or a mirror on a rig without one."""
         if not motions:
             raise UserError("transition bank: no training motions to build it from")
         skel = motions[0].skeleton
+        names = [str(m.source).rsplit("/", 1)[-1] for m in motions]
+        if mirror:
+            motions = list(motions) + [_mirrored(m, forward_axis) for m in motions]
+            names += [n + MIRROR_TAG for n in names]
         lens = [m.num_frames for m in motions]
         return cls(np.concatenate([m.local_quats for m in motions]).astype(np.float32),
                    np.concatenate([m.root_pos for m in motions]).astype(np.float32),
-                   np.concatenate([[0], np.cumsum(lens)]).astype(np.int64),
-                   tuple(str(m.source).rsplit("/", 1)[-1] for m in motions),
+                   np.concatenate([[0], np.cumsum(lens)]).astype(np.int64), tuple(names),
                    np.asarray(skel.offsets, np.float64), tuple(int(p) for p in skel.parents),
                    np.asarray(forward_axis, np.float64), int(stride))
 
@@ -136,9 +142,15 @@ class TransitionBank:
 
     def clip_of(self, names) -> np.ndarray:
         """Bank clip index of each name (a file name, with or without its extension; -1 when not in the bank)."""
-        stem = lambda n: str(n).rsplit("/", 1)[-1].rsplit(".", 1)[0]       # noqa: E731
-        where = {stem(n): i for i, n in enumerate(self.names)}
-        return np.asarray([where.get(stem(n), -1) for n in names], np.int64)
+        where = {_stem(n): i for i, n in enumerate(self.names)}
+        return np.asarray([where.get(_stem(n), -1) for n in names], np.int64)
+
+    @property
+    def source_clips(self) -> np.ndarray:
+        """(C,) each clip's own index, or for a mirror image (:data:`MIRROR_TAG`) its original's: a query
+        excluded from its own motion is excluded from that motion's mirror image too."""
+        own = self.clip_of([n[:-len(MIRROR_TAG)] if n.endswith(MIRROR_TAG) else n for n in self.names])
+        return np.where(own < 0, np.arange(len(self.names)), own)
 
     def _turned(self, frames, span: int):
         """Root facing change (radians, unwrapped: a full spin is 2 pi) from each of ``frames`` to ``span``
@@ -153,6 +165,28 @@ class TransitionBank:
         """q (N, 2, J, 4), r (N, 2, 3) keyframe pairs in their start's space -> (N, 2 J 3) joint positions."""
         _, gp = forward_kinematics(q, local_positions(r, self.offsets), self.parents)
         return gp.reshape(len(gp), -1)
+
+
+def _stem(name) -> str:
+    """A clip name without folders and extension (a mirror image's tag kept)."""
+    n = str(name).rsplit("/", 1)[-1]
+    tag = MIRROR_TAG if n.endswith(MIRROR_TAG) else ""
+    return n[:len(n) - len(tag)].rsplit(".", 1)[0] + tag
+
+
+def _mirrored(motion, forward_axis):
+    """``motion.mirrored()`` for the bank; UserError (one line) when its rig has no mirror, or the root's facing
+    axis lies across the mirror (the mirror image would face backwards)."""
+    from inbetween_jax.geometry.mirror import rest_side_axis
+    try:
+        axis = rest_side_axis(motion.skeleton.offsets, motion.skeleton.mirror_map())
+    except ValueError as e:
+        raise UserError(f"{motion.source}: transition bank mirror: {e}") from None
+    fa = np.asarray(forward_axis, np.float64)
+    if abs(fa[axis]) > 0.1 * np.linalg.norm(fa):
+        raise UserError(f"{motion.source}: transition bank mirror: the facing axis {fa.tolist()} is not "
+                        f"perpendicular to the rig's left-right axis {'xyz'[axis]}")
+    return motion.mirrored()
 
 
 def keyframe_space(q_root, root, forward_axis):
@@ -226,7 +260,8 @@ def knn_transition(bank: TransitionBank, key_q, key_r, tgt_q, tgt_r, length: int
     key_r2 = np.stack([key_r, tgt_r], 1).astype(np.float64)
     out_q, out_r, out_d = [], [], []
     f2 = np.sum(feats ** 2, 1)
-    clips = np.searchsorted(bank.clip_starts, frames, side="right") - 1 if exclude is not None else None
+    clips = (bank.source_clips[np.searchsorted(bank.clip_starts, frames, side="right") - 1]
+             if exclude is not None else None)
     n = length + 2
     for lo in range(0, len(key_q2), QUERY_CHUNK):
         q2, r2 = key_q2[lo:lo + QUERY_CHUNK], key_r2[lo:lo + QUERY_CHUNK]
