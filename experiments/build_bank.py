@@ -51,7 +51,8 @@ def main(argv=None) -> int:
         if a.switches:
             meta["config"] = _with_overrides(run.model, meta["config"], a.switches)
         meta["bank"] = {"source": source, "split": a.split, "mirror": a.mirror, "takes": list(bank.names),
-                        "frames": bank.num_frames, "switches": list(a.switches) or meta.get("bank", {}).get("switches", [])}
+                        "frames": bank.num_frames,
+                        "switches": list(a.switches) or meta.get("bank", {}).get("switches", [])}
     except (UserError, RunError, ValueError, OSError) as e:
         print(f"build_bank: error: {e}", file=sys.stderr)
         return 2
