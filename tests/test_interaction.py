@@ -225,3 +225,19 @@ def test_frechet_distance_matches_the_diagonal_closed_form():
     ref = np.sum((a.mean(0) - b.mean(0)) ** 2) + np.sum((a.std(0, ddof=1) - b.std(0, ddof=1)) ** 2)
     assert abs(frechet_distance(a, b) - ref) < 0.02
     assert abs(frechet_distance(a, a)) < 1e-6
+
+
+@pytest.mark.parametrize("name, side", [("cmu", 0), ("lafan1", 2)])
+def test_mirrored_features_are_the_features_of_the_mirrored_motion(name, side):
+    """``mirror_feats`` against the independent route: the features of the motion mirrored on its rig
+    (``Motion.mirrored``).  On LaFAN1's rig (left-right along local z) the forward vectors flip too."""
+    from conftest import CLIP_A, HAS_LAFAN1, LAFAN1_DIR
+    if name == "lafan1" and not HAS_LAFAN1:
+        pytest.skip("LaFAN1 BVH files not found")
+    from inbetween_jax.data import read_bvh
+    path = CLIP_A if name == "cmu" else os.path.join(LAFAN1_DIR, "walk4_subject1.bvh")
+    m = read_bvh(path, 0, 40)
+    assert ifeat.skeleton_side_axis(m.skeleton) == side
+    ref = ifeat.world_joint_features(m.mirrored())
+    got = ifeat.mirror_feats(ifeat.world_joint_features(m), m.skeleton.mirror_map(), side)
+    np.testing.assert_allclose(got, ref, atol=1e-6)

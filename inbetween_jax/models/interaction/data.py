@@ -28,7 +28,8 @@ from inbetween_jax.data.skeleton import Skeleton
 from inbetween_jax.geometry.heading import yaw_matrix
 from inbetween_jax.models.interaction.features import (apply_space, facing_yaw, keyframe_sample, mirror_feats,
                                                        relative_space, root_space, scale_positions,
-                                                       skeleton_forward_axis, to_space, world_joint_features)
+                                                       skeleton_forward_axis, skeleton_side_axis, to_space,
+                                                       world_joint_features)
 
 __all__ = ["PairedMotion", "PairSet", "load_pair", "find_pair_files", "static_joints", "subset_skeleton",
            "real_pair_splits", "load_real_pairs", "place_facing", "construct_pairs",
@@ -403,7 +404,7 @@ def sample_batch(pairs: Sequence[PairedMotion], rng: np.random.Generator, batch:
     f = np.stack([pairs[i].feats[:, s:s + need] for i, s in zip(idx, starts)]).astype(np.float64)
     if mirror:
         flip = rng.random(batch) < 0.5
-        f[flip] = mirror_feats(f[flip], mm)
+        f[flip] = mirror_feats(f[flip], mm, skeleton_side_axis(pairs[0].skeleton))
     kf = f[np.arange(batch), :, keys]                                       # (B, 2, J, 9)
     R, t = root_space(kf[:, :, 0], pairs[0].forward_axis)
     b = dict(x=to_space(f[:, :, :length], R[:, :, None], t[:, :, None]), keypose=to_space(kf, R, t))

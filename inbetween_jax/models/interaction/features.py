@@ -21,7 +21,7 @@ from inbetween_jax.geometry.heading import heading_angle, yaw_matrix
 
 __all__ = ["LAFAN_FORWARD", "world_joint_features", "skeleton_forward_axis", "apply_space", "to_space",
            "compose_spaces", "relative_space", "facing_yaw", "root_space", "to_common_space", "mirror_feats",
-           "keyframe_sample", "scale_positions", "key_space_inputs"]
+           "skeleton_side_axis", "keyframe_sample", "scale_positions", "key_space_inputs"]
 
 LAFAN_FORWARD = (0.0, 1.0, 0.0)
 
@@ -113,10 +113,29 @@ def to_common_space(feats, rel_R, rel_t):
 
 
 # ----------------------------------------------------------------------------- samples
-def mirror_feats(feat: np.ndarray, mirror_map: Sequence[int]) -> np.ndarray:
-    """Mirror across the YZ plane (x -> -x) and swap left/right joints: (..., J, 9) -> (..., J, 9)."""
+def mirror_feats(feat: np.ndarray, mirror_map: Sequence[int], rest_axis: int = 0) -> np.ndarray:
+    """Mirror across the YZ plane (x -> -x) and swap left/right joints: (..., J, 9) -> (..., J, 9).
+
+    rest_axis: the rig's left-right axis at rest (:func:`skeleton_side_axis`; 0 for CMU's rig, 2 for LaFAN1's).
+    A mirrored joint's rotation is ``M G_twin N`` (``N`` the reflection across that axis,
+    :mod:`inbetween_jax.geometry.mirror`), so its forward (+Z) / up (+Y) vector also flips sign when the rest
+    axis is that local axis."""
     sign = np.tile(np.array([-1.0, 1.0, 1.0], feat.dtype), 3)
+    if rest_axis == 2:                      # local +Z, the forward vector (channels 3-5)
+        sign[3:6] *= -1.0
+    elif rest_axis == 1:                    # local +Y, the up vector (channels 6-8)
+        sign[6:9] *= -1.0
     return (feat * sign)[..., list(mirror_map), :]
+
+
+def skeleton_side_axis(skel: Skeleton) -> int:
+    """The rig's left-right axis at rest (:func:`~inbetween_jax.geometry.mirror.rest_side_axis`); 0 for a rig
+    without left/right joints or without a symmetric rest pose (mirroring is then x -> -x alone)."""
+    from inbetween_jax.geometry.mirror import rest_side_axis
+    try:
+        return rest_side_axis(skel.offsets, skel.mirror_map())
+    except ValueError:
+        return 0
 
 
 def keyframe_sample(feats: np.ndarray, start: int, length: int, key: int, forward_axis) -> dict:
