@@ -67,8 +67,9 @@ class TransitionBank:
             raise UserError("transition bank: no training motions to build it from")
         skel = motions[0].skeleton
         names = [str(m.source).rsplit("/", 1)[-1] for m in motions]
-        if mirror:
-            motions = list(motions) + [_mirrored(m, forward_axis) for m in motions]
+        if mirror:                                  # one skeleton: checked once
+            _check_mirror(skel, forward_axis, motions[0].source)
+            motions = list(motions) + [m.mirrored() for m in motions]
             names += [n + MIRROR_TAG for n in names]
         lens = [m.num_frames for m in motions]
         return cls(np.concatenate([m.local_quats for m in motions]).astype(np.float32),
@@ -174,19 +175,19 @@ def _stem(name) -> str:
     return n[:len(n) - len(tag)].rsplit(".", 1)[0] + tag
 
 
-def _mirrored(motion, forward_axis):
-    """``motion.mirrored()`` for the bank; UserError (one line) when its rig has no mirror, or the root's facing
-    axis lies across the mirror (the mirror image would face backwards)."""
+def _check_mirror(skel, forward_axis, source) -> None:
+    """UserError (one line, naming ``source``) when the rig ``skel`` has no mirror
+    (:func:`~inbetween_jax.geometry.mirror.rest_side_axis`), or the root's facing axis lies across the mirror (the
+    mirror image would face backwards)."""
     from inbetween_jax.geometry.mirror import rest_side_axis
     try:
-        axis = rest_side_axis(motion.skeleton.offsets, motion.skeleton.mirror_map())
+        axis = rest_side_axis(skel.offsets, skel.mirror_map())
     except ValueError as e:
-        raise UserError(f"{motion.source}: transition bank mirror: {e}") from None
+        raise UserError(f"{source}: transition bank mirror: {e}") from None
     fa = np.asarray(forward_axis, np.float64)
     if abs(fa[axis]) > 0.1 * np.linalg.norm(fa):
-        raise UserError(f"{motion.source}: transition bank mirror: the facing axis {fa.tolist()} is not "
+        raise UserError(f"{source}: transition bank mirror: the facing axis {fa.tolist()} is not "
                         f"perpendicular to the rig's left-right axis {'xyz'[axis]}")
-    return motion.mirrored()
 
 
 def keyframe_space(q_root, root, forward_axis):
