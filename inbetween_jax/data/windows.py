@@ -12,6 +12,7 @@ import numpy as np
 from inbetween_jax.data.bvh import Motion
 from inbetween_jax.data.features import foot_contacts
 from inbetween_jax.data.skeleton import Skeleton
+from inbetween_jax.geometry.mirror import MIRROR_TAG, mirror_pose, rest_side_axis
 from inbetween_jax.geometry.kinematics import forward_kinematics, inverse_kinematics, local_positions
 from inbetween_jax.geometry.quaternion import quat_between, quat_fix_sign_np, quat_inv, quat_mul, quat_rotate
 
@@ -82,6 +83,18 @@ class MotionWindows:
         return dataclasses.replace(self, local_quats=self.local_quats[:, ::-1].copy(),
                                    root_pos=self.root_pos[:, ::-1].copy(), contacts=self.contacts[:, ::-1].copy(),
                                    seq_names=[n + ":reversed" for n in self.seq_names])
+
+    def mirrored(self, world_axis: int = 0) -> "MotionWindows":
+        """The left-right mirror image of every window in the world plane with normal ``world_axis`` (a floor
+        axis): left and right joints and foot contacts swap (:func:`inbetween_jax.geometry.mirror.mirror_pose`);
+        names gain :data:`MIRROR_TAG`.  Raises ValueError (one line) on a rig without left/right joints or
+        whose rest pose is not symmetric."""
+        twin = self.skeleton.mirror_map()
+        q, r = mirror_pose(self.local_quats, self.root_pos, twin, rest_side_axis(self.skeleton.offsets, twin),
+                           world_axis)
+        return dataclasses.replace(self, local_quats=q.astype(np.float32), root_pos=r.astype(np.float32),
+                                   contacts=self.contacts[..., [2, 3, 0, 1]].copy(),
+                                   seq_names=[n + MIRROR_TAG for n in self.seq_names])
 
     def batch(self, index) -> dict:
         """A dict of float32 arrays for a training step (index: int array of window ids)."""

@@ -16,8 +16,9 @@ import numpy as np
 
 from inbetween_jax.geometry.quaternion import quat_mul
 
-__all__ = ["rest_side_axis", "mirror_pose"]
+__all__ = ["MIRROR_TAG", "rest_side_axis", "mirror_pose"]
 
+MIRROR_TAG = " (mirrored)"  # the name suffix of a mirror image (a bank clip, a training window)
 SYMMETRY_TOL = 0.05    # largest left/right offset mismatch, as a share of the rig's longest bone, to count as symmetric
 
 

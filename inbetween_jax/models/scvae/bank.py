@@ -26,16 +26,16 @@ import numpy as np
 
 from inbetween_jax.errors import UserError
 from inbetween_jax.geometry.kinematics import forward_kinematics, local_positions
+from inbetween_jax.geometry.mirror import MIRROR_TAG
 from inbetween_jax.geometry.quaternion import quat_from_axis_angle, quat_inv, quat_mul, quat_normalize, quat_rotate
 from inbetween_jax.geometry.quaternion import quat_fix_sign_np, quat_slerp
 
 __all__ = ["BANK_FILE", "SWITCHES", "MIRROR_TAG", "TransitionBank", "keyframe_space", "knn_transition",
-           "knn_base_path", "pad_base_path", "blend", "bank_enabled", "bank_needed"]
+           "knn_base_path", "pad_base_path", "blend", "bank_enabled", "bank_needed", "check_mirror"]
 
 BANK_FILE = "bank.npz"
 SWITCHES = ("model.bank_k", "model.bank_weight", "model.bank_tau")     # inference only
 CACHED_LENGTHS = 8        # transition lengths whose match features a bank keeps (about 30 MB each for CMU)
-MIRROR_TAG = " (mirrored)"  # the name suffix of a clip's mirror image in a bank built with ``mirror=True``
 QUERY_CHUNK = 64          # queries warped at once (memory: chunk x k x frames x joints x 4)
 MAX_TURN = np.pi          # bank transitions whose root turns further than this (radians) are not candidates
 
@@ -68,7 +68,7 @@ class TransitionBank:
         skel = motions[0].skeleton
         names = [str(m.source).rsplit("/", 1)[-1] for m in motions]
         if mirror:                                  # one skeleton: checked once
-            _check_mirror(skel, forward_axis, motions[0].source)
+            check_mirror(skel, forward_axis, motions[0].source)
             motions = list(motions) + [m.mirrored() for m in motions]
             names += [n + MIRROR_TAG for n in names]
         lens = [m.num_frames for m in motions]
@@ -175,7 +175,7 @@ def _stem(name) -> str:
     return n[:len(n) - len(tag)].rsplit(".", 1)[0] + tag
 
 
-def _check_mirror(skel, forward_axis, source) -> None:
+def check_mirror(skel, forward_axis, source, what: str = "transition bank mirror") -> None:
     """UserError (one line, naming ``source``) when the rig ``skel`` has no mirror
     (:func:`~inbetween_jax.geometry.mirror.rest_side_axis`), or the root's facing axis lies across the mirror (the
     mirror image would face backwards)."""
@@ -183,10 +183,10 @@ def _check_mirror(skel, forward_axis, source) -> None:
     try:
         axis = rest_side_axis(skel.offsets, skel.mirror_map())
     except ValueError as e:
-        raise UserError(f"{source}: transition bank mirror: {e}") from None
+        raise UserError(f"{source}: {what}: {e}") from None
     fa = np.asarray(forward_axis, np.float64)
     if abs(fa[axis]) > 0.1 * np.linalg.norm(fa):
-        raise UserError(f"{source}: transition bank mirror: the facing axis {fa.tolist()} is not "
+        raise UserError(f"{source}: {what}: the facing axis {fa.tolist()} is not "
                         f"perpendicular to the rig's left-right axis {'xyz'[axis]}")
 
 

@@ -49,6 +49,9 @@ from a bank of the training files without the window's own file (the run folder'
 training starts), so the network learns to correct the retrieval it will get on unseen motion.  Measured on
 LaFAN1 at 3,000 steps it adds about 1 % to the bank alone and loses to the blend at 50 frames (docs/results/scvae.md).
 
+``data.mirror`` (off in every preset) adds every training window's left-right mirror image
+(:meth:`~inbetween_jax.data.windows.MotionWindows.mirrored`): twice the windows, a body's motion again.
+
 ``model.deferred_wgrad`` is a speed switch only (the largest weight gradients as one matmul after the scan, see
 :mod:`inbetween_jax.models.scvae.deferred_grads`); it does not change the losses.
 """
@@ -120,6 +123,7 @@ class DataConfig:
     length_mode: str = "progressive"    # "mixed": each batch draws its length uniformly up to the current one
     bucket: int = 0                # > 0: scan length rounded up to a multiple of this (cheaper short stages)
     window: int = 0                # training window frames (0: the source's default, 50 at offset 20)
+    mirror: bool = False           # add every training window's left-right mirror image (not the paper)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -21,7 +21,8 @@ import optax
 
 from inbetween_jax.models.scvae import losses as L
 from inbetween_jax.models.scvae import model as M
-from inbetween_jax.models.scvae.bank import BANK_FILE, TransitionBank, knn_base_path
+from inbetween_jax.data.windows import MotionWindows
+from inbetween_jax.models.scvae.bank import BANK_FILE, TransitionBank, check_mirror, knn_base_path
 from inbetween_jax.models.scvae.deferred_grads import add_deferred_weight_grads, make_taps
 from inbetween_jax.models.scvae.features import TrainData, compute_stats, dims
 from inbetween_jax.models.spec import Training
@@ -46,6 +47,9 @@ def load_data(cfg, source: str, split: str = "train") -> TrainData:
                          f"data.trans_max={cfg.data.trans_max} (at most {windows.window - 2})")
     ws = window_settings(source, split)
     forward = ws["forward_axis"] or tuple(windows.skeleton.forward_axis())
+    if cfg.data.mirror:
+        check_mirror(windows.skeleton, forward, source, "data.mirror")
+        windows = MotionWindows.concatenate([windows, windows.mirrored()])
     bank = None
     if cfg.model.bank_base:
         if not cfg.model.residual or cfg.model.bank_k < 1:
