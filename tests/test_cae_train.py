@@ -269,3 +269,9 @@ def test_bench_quick_runs(tmp_path):
     assert lin == {"mpjpe_cm", "mpjpe_std_cm"}
     # the linear row of a noise column is the noisy input itself
     assert r["table2"]["linear"]["sigma=1.0"][0] > r["table2"]["linear"]["p=0.3"][0]
+    # a paste_known run returns a fully known clip unchanged: its noise cells are the noisy input's, and say so
+    assert r["paste_known"] == ["cae_residual", "cae_residual:improved_mirror"]
+    assert r["table2"]["cae_residual"]["sigma=1.0"] == pytest.approx(r["table2"]["linear"]["sigma=1.0"])
+    rows = [x for x in r["markdown"].splitlines() if x.startswith("| CAE, residual (improved) |")]
+    assert sum(x.count("(input: paste_known)") for x in rows) == 5     # reconstruction x 3, sigma x 2
+    assert not any("paste_known" in x for x in r["markdown"].splitlines() if x.startswith("| CAE (ours) |"))

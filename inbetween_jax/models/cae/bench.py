@@ -112,6 +112,7 @@ def run(source: str | None, results_dir: str, run_dir: str | None, quick: bool =
               "num_clips": int(x.shape[0]), "clip_length": int(x.shape[2]), "fps": fps,
               "test_files": [os.path.basename(m.source) for m in motions],
               "steps": {v: m.step for v, m in models.items()},
+              "paste_known": sorted(v for v, m in models.items() if m.cfg.model.paste_known),
               "table1": {m: tables[m]["table1"] for m in methods},
               "table1_seconds": {m: tables[m]["table1_seconds"] for m in methods},
               "table2": {m: tables[m]["table2"] for m in methods},
@@ -208,6 +209,12 @@ def _rows(r, methods, data) -> list:
     return out
 
 
+def _pasted(r, method: str) -> str:
+    """The mark of a cell that a ``model.paste_known`` run fills with its input unchanged (every entry known:
+    the clean clip, or the noisy one of Table 2), so its number is the input's, not the network's."""
+    return " (input: paste_known)" if method in r.get("paste_known", ()) else ""
+
+
 def _markdown(r, methods) -> str:
     from inbetween_jax.evaluation import markdown_table
     from inbetween_jax.evaluation.infilling import PS, SIGMAS
@@ -218,17 +225,20 @@ def _markdown(r, methods) -> str:
     tm = []
     for m in methods:
         g = r["time_matched"][m]["gaps"]
-        row = {"Model": _label(m), tm_cols[0]: _fmt(r["time_matched"][m]["recon"])}
+        row = {"Model": _label(m), tm_cols[0]: _fmt(r["time_matched"][m]["recon"]) + _pasted(r, m)}
         for s, c in zip(secs, tm_cols[1:]):
             ratio = "" if m == "linear" else f" [x{g[s]['err'][0] / lin[s]['err'][0]:.2f}]"
             row[c] = _fmt(g[s]["err"]) + ratio
         tm.append(row)
-    t1 = [{"Model": _label(m), **{f"{g} Frames": _fmt(v) for g, v in zip((0, 60, 120), r["table1"][m])},
+    t1 = [{"Model": _label(m), **{f"{g} Frames": _fmt(v) + (_pasted(r, m) if g == 0 else "")
+                                  for g, v in zip((0, 60, 120), r["table1"][m])},
            "paper 0 / 60 / 120": " / ".join(PAPER_T1[m.partition(":")[0].split("_")[0]])} for m in methods]
-    t1s = [{"Model": _label(m), **{f"{g} Frames": _fmt(v) for g, v in zip((0, 30, 60), r["table1_seconds"][m])}}
+    t1s = [{"Model": _label(m), **{f"{g} Frames": _fmt(v) + (_pasted(r, m) if g == 0 else "")
+                                   for g, v in zip((0, 30, 60), r["table1_seconds"][m])}}
            for m in methods]
     keys = [f"sigma={s}" for s in SIGMAS] + [f"p={p}" for p in PS]
-    t2 = [{"Model": _label(m), **{k: _fmt(r["table2"][m][k]) for k in keys}} for m in methods]
+    t2 = [{"Model": _label(m), **{k: _fmt(r["table2"][m][k]) + (_pasted(r, m) if k.startswith("sigma") else "")
+                                  for k in keys}} for m in methods]
     bones = [{"Model": _label(m), "median - GT median": b["mean_abs_median_dev_cm"], "std": b["mean_std_cm"],
               "IQR": b["mean_iqr_cm"], "GT std": b["gt_mean_std_cm"]} for m, b in r["bones"].items()]
     parts = [
@@ -243,7 +253,8 @@ def _markdown(r, methods) -> str:
                        f"Table 1b (same durations as the paper's 60 Hz gaps: 30 / 60 frames at {fps:.0f} Hz = "
                        "1 s / 2 s)", keys=("Model",)),
         markdown_table(t2, keys, "Table 2 (de-noising; every frame scored; sigma in normalised units; linear "
-                       "row for sigma: the noisy input itself)", keys=("Model",)),
+                       "row for sigma: the noisy input itself, as for a paste_known run)", keys=("Model",)),
         markdown_table(bones, ("median - GT median", "std", "IQR", "GT std"),
-                       "Bone lengths on reconstruction (cm): mean over bones", keys=("Model",), digits=2)]
+                       "Bone lengths on reconstruction (cm): mean over bones; a paste_known run's "
+                       "reconstruction is its input", keys=("Model",), digits=2)]
     return "\n\n".join(parts) + "\n"
