@@ -34,5 +34,5 @@ def shared_data_dir(required: bool = False) -> Optional[str]:
         from inbetween_jax.errors import UserError
         where = f"${SHARED_DATA_ENV}={env} is not a folder" if env else f"{path} not found"
         raise UserError(f"the cmu source needs the shared mocap folder ({where}): set {SHARED_DATA_ENV} to the "
-                        "folder holding cmu_bvh/, cmu_more/daz43/ and cmu_pairs/")
+                        "folder holding cmu_bvh/, cmu_more/daz43/, cmu_more/mb31/ and cmu_pairs/")
     return None

@@ -251,7 +251,8 @@ def test_cmu_splits(cmu_env):
     assert len(set(names)) == len(names)                       # no trial twice (embedded copies dropped)
     assert set(split_files("embedded", "train")) <= set(train)
     folders = {os.path.basename(os.path.dirname(f)) for f in train}
-    assert folders == {"cmu30", "daz43", "cmu_pairs"}          # cmu_bvh: all embedded, held out or other rigs
+    assert folders == {"cmu30", "daz43", "mb31", "cmu_pairs"}  # cmu_bvh: all embedded, held out or other rigs
+    assert sum(os.path.basename(os.path.dirname(f)) == "mb31" for f in train) == 51
     assert sum("_scaled" in f for f in train) == 24
     assert not set(val) & set(fit) and sorted(val + fit) == sorted(train)
     assert 0.08 * len(train) <= len(val) <= 0.15 * len(train)
@@ -319,6 +320,19 @@ def test_cmu_motions_share_the_embedded_skeleton_and_unit():
 
 
 @requires_cmu
+def test_cmu_reads_the_31_joint_rig_on_the_embedded_body(cmu_env):
+    """An mb31 capture in the cmu training set: put on the embedded 21-joint body in its unit, at 30 Hz, its
+    T-pose frame dropped, feet near the floor and hips at a standing height like the daz43 files'."""
+    from inbetween_jax.data.sources import read_cmu_train, reference_skeleton
+    (m, daz), note = read_cmu_train([shared(MB30), shared(DAZ30)], "val", 30.0)
+    assert "cmu_more/mb31 1 files" in note and "retargeted by bone directions" in note
+    assert m.skeleton is reference_skeleton() and m.num_frames == read_bvh(shared(MB30)).num_frames - 1
+    g, gd = m.global_positions(), daz.global_positions()
+    feet = [m.skeleton.names.index(n) for n in ("lFoot", "rFoot")]
+    assert 0.0 < g[:, feet, 1].min() < 15.0 and abs(np.median(g[:, 0, 1]) / np.median(gd[:, 0, 1]) - 1) < 0.2
+
+
+@requires_cmu
 @pytest.mark.slow
 def test_cmu_windows_and_cache(cmu_env, tmp_path, monkeypatch, capfd):
     """The whole cmu training set (~150 files, about a minute cold): one skeleton and unit, more windows than
@@ -327,12 +341,13 @@ def test_cmu_windows_and_cache(cmu_env, tmp_path, monkeypatch, capfd):
     from inbetween_jax.data.sources import reference_skeleton
     train = load_dataset("cmu", "train")
     err = capfd.readouterr().err
-    assert "data: cmu: training on 146 files" in err and "3 files on another skeleton" in err
+    assert "data: cmu: training on 197 files" in err and "3 files on another skeleton" in err
+    assert "cmu_more/mb31 51 files" in err and "retargeted by bone directions" in err
     assert train.skeleton.names == reference_skeleton().names and train.unit_scale == 1.0
     assert len(train) > 3 * len(load_dataset("embedded", "train"))
     val, fit = load_dataset("cmu", "val"), load_dataset("cmu", "fit")
     assert len(val) + len(fit) == len(train) and not set(val.seq_names) & set(fit.seq_names)
     again = load_dataset("cmu", "train")
-    assert "training on 146 files" in capfd.readouterr().err
+    assert "training on 197 files" in capfd.readouterr().err
     np.testing.assert_array_equal(again.local_quats, train.local_quats)
     assert len(load_dataset("cmu", "test")) == len(load_dataset("embedded", "test"))

@@ -6,8 +6,10 @@ validation split of every source.
 * test / benchmark -- exactly the embedded default's test files (``assets/cmu30``, subjects 13 and 14), so
   ``cmu`` and ``embedded`` are scored on the same windows;
 * train -- the embedded training files plus, from the shared mocap folder
-  (:func:`~inbetween_jax.paths.shared_data_dir`), ``cmu_bvh/*.bvh``, ``cmu_more/daz43/*.bvh`` and both dancers
-  of every ``cmu_pairs`` take, each as a single-person motion.  Trials of CMU subjects 13 and 14 are never
+  (:func:`~inbetween_jax.paths.shared_data_dir`), ``cmu_bvh/*.bvh``, ``cmu_more/daz43/*.bvh``,
+  ``cmu_more/mb31/*.bvh`` (another rig: put on the 43-joint body of ``cmu_bvh/02_01.bvh`` by bone directions,
+  :func:`~inbetween_jax.data.rig_transfer.transfer_mb31`) and both dancers of every ``cmu_pairs`` take, each as
+  a single-person motion.  Trials of CMU subjects 13 and 14 are never
   trained on, trials already in the embedded set (compared by trial name ``NN_MM``) are dropped, and files whose
   skeleton lacks a joint of the embedded 21-joint body (the 31-joint ``cmu_bvh`` files, 18_01) are skipped.
   Every training motion is restricted to the embedded joints (same order; the 43-joint files' extra joints are
@@ -32,8 +34,9 @@ import numpy as np
 
 CMU = "cmu"
 NAMED_SOURCES = ("embedded", CMU)
-CMU_VERSION = 1             # part of the window-cache key: bump when the conversion below changes
-CMU_FOLDERS = ("cmu_bvh", os.path.join("cmu_more", "daz43"), "cmu_pairs")
+CMU_VERSION = 2             # part of the window-cache key: bump when the conversion below changes
+MB31_FOLDER = os.path.join("cmu_more", "mb31")     # the 31-joint rig, put on the body by bone directions
+CMU_FOLDERS = ("cmu_bvh", os.path.join("cmu_more", "daz43"), MB31_FOLDER, "cmu_pairs")
 HELD_OUT_SUBJECTS = ("13", "14")
 VAL_FRACTION = 0.1
 TPOSE_TOL = 0.01            # max |1 - |w|| of the non-root joints' rotations at frame 0 for a T-pose frame
@@ -75,6 +78,21 @@ def _on_reference(path: str, ref_names) -> bool:
     return bool(names) and names[0] == ref_names[0] and set(ref_names) <= set(names)
 
 
+def _on_mb31_rig(path: str) -> bool:
+    """Whether the file's hierarchy holds every joint :func:`~inbetween_jax.data.rig_transfer.transfer_mb31`
+    reads."""
+    from inbetween_jax.data.rig_transfer import MB31_JOINTS
+    return set(MB31_JOINTS) <= set(_header_joints(path, os.stat(path).st_mtime_ns))
+
+
+@functools.lru_cache(maxsize=1)
+def _body_template():
+    """Two frames of ``cmu_bvh/02_01.bvh``: the 43-joint body the mb31 captures are put on."""
+    from inbetween_jax.data.bvh import read_bvh
+    from inbetween_jax.paths import shared_data_dir
+    return read_bvh(os.path.join(shared_data_dir(required=True), "cmu_bvh", "02_01.bvh"), 0, 2)
+
+
 def cmu_train_plan() -> tuple:
     """``(files, dropped)``: the ``cmu`` training files (embedded train first, then each shared folder,
     sorted) and ``dropped`` = {"subjects 13/14": [...], "duplicates": [...], "other skeleton": [...]}.
@@ -98,7 +116,7 @@ def cmu_train_plan() -> tuple:
                 dropped["subjects 13/14"].append(f)
             elif name in seen:
                 dropped["duplicates"].append(f)
-            elif not _on_reference(f, ref_names):
+            elif not (_on_mb31_rig(f) if sub == MB31_FOLDER else _on_reference(f, ref_names)):
                 dropped["other skeleton"].append(f)
             else:
                 files.append(f)
@@ -204,8 +222,12 @@ def read_cmu_train(files: list, split: str, fps: float) -> tuple:
     shared, ref = shared_data_dir(required=True), reference_skeleton()
     motions, frames, count, scaled = [], Counter(), Counter(), Counter()
     for f in _progress(files, f"reading cmu {split} BVH"):
-        m, factor = to_reference(read_bvh(f), ref, fps)
         label = _folder_label(f, shared)
+        raw = read_bvh(f)
+        if label == MB31_FOLDER:
+            from inbetween_jax.data.rig_transfer import transfer_mb31
+            raw = transfer_mb31(raw, _body_template())
+        m, factor = to_reference(raw, ref, fps)
         frames[label] += m.num_frames
         count[label] += 1
         if abs(factor - 1.0) > 0.05:
@@ -214,6 +236,7 @@ def read_cmu_train(files: list, split: str, fps: float) -> tuple:
     parts = []
     for label in count:
         unit = f", x{scaled[label]:.4g} to the embedded unit" if label in scaled else ""
+        unit += ", retargeted by bone directions" if label == MB31_FOLDER else ""
         parts.append(f"{label} {count[label]} files {frames[label] / fps / 60:.1f} min{unit}")
     what = "training on" if split == "train" else f"{split} split:"
     note = (f"data: cmu: {what} {len(files)} files, {sum(frames.values()) / fps / 60:.1f} min at {fps:g} fps "
