@@ -1,5 +1,6 @@
-"""``data.rig_transfer.transfer_mb31`` and ``experiments/retarget_mb31.py``: a real 31-joint CMU capture put on the 43-joint training body, checked
-against the capture's own bone directions and hip sockets, and read back as a file the ``cmu`` source takes."""
+"""``data.rig_transfer.transfer_mb31`` and ``experiments/retarget_mb31.py``: a real 31-joint CMU capture put on
+the 43-joint training body, checked against the capture's own bone directions and hip sockets, and read back as a
+file the ``cmu`` source takes."""
 import importlib.util
 import os
 

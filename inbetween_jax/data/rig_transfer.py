@@ -63,9 +63,9 @@ def transfer_mb31(capture, template):
     missing = [n for n in MB31_JOINTS if n not in capture.skeleton.names]
     if missing:
         raise UserError(f"{capture.source}: not the 31-joint CMU rig (no {', '.join(missing[:4])})")
-    from inbetween_jax.geometry.kinematics import forward_kinematics
-    from inbetween_jax.geometry.quaternion import (quat_between, quat_fix_sign_np, quat_from_matrix, quat_inv,
-                                                   quat_mul, quat_rotate)
+    from inbetween_jax.geometry.kinematics import forward_kinematics, inverse_kinematics
+    from inbetween_jax.geometry.quaternion import (quat_between, quat_fix_sign_np, quat_from_matrix, quat_mul,
+                                                   quat_rotate)
     skel = template.skeleton
     names, parents = list(skel.names), skel.parents
     idx = {n: i for i, n in enumerate(names)}
@@ -97,9 +97,7 @@ def transfer_mb31(capture, template):
             glob[:, j] = quat_mul(quat_between(_unit(now), _unit(cvec(pair))), pq)
         else:
             glob[:, j] = pq                                                  # rest rotation
-    local = glob.copy()
-    for j in range(1, j_len):
-        local[:, j] = quat_mul(quat_inv(glob[:, parents[j]]), glob[:, j])
+    local = inverse_kinematics(glob, np.zeros(glob.shape[:-1] + (3,)), parents)[0]     # rotations only
     local = quat_fix_sign_np(local / np.linalg.norm(local, axis=-1, keepdims=True), axis=0)
     leg_t = np.linalg.norm(skel.offsets[idx["lShin"]]) + np.linalg.norm(skel.offsets[idx["lFoot"]])
     leg_c = np.median(np.linalg.norm(cvec(("LeftUpLeg", "LeftLeg")), axis=-1)

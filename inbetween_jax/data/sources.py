@@ -218,6 +218,7 @@ def read_cmu_train(files: list, split: str, fps: float) -> tuple:
     files ``files`` (all of ``train``, or its ``val`` / ``fit`` part)."""
     from inbetween_jax.data.bvh import read_bvh
     from inbetween_jax.data.datasets import _progress
+    from inbetween_jax.data.rig_transfer import transfer_mb31
     from inbetween_jax.paths import shared_data_dir
     shared, ref = shared_data_dir(required=True), reference_skeleton()
     motions, frames, count, scaled = [], Counter(), Counter(), Counter()
@@ -225,7 +226,6 @@ def read_cmu_train(files: list, split: str, fps: float) -> tuple:
         label = _folder_label(f, shared)
         raw = read_bvh(f)
         if label == MB31_FOLDER:
-            from inbetween_jax.data.rig_transfer import transfer_mb31
             raw = transfer_mb31(raw, _body_template())
         m, factor = to_reference(raw, ref, fps)
         frames[label] += m.num_frames

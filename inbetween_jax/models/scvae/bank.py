@@ -26,7 +26,7 @@ import numpy as np
 
 from inbetween_jax.errors import UserError
 from inbetween_jax.geometry.kinematics import forward_kinematics, local_positions
-from inbetween_jax.geometry.mirror import MIRROR_TAG
+from inbetween_jax.geometry.mirror import MIRROR_TAG, rest_side_axis
 from inbetween_jax.geometry.quaternion import quat_from_axis_angle, quat_inv, quat_mul, quat_normalize, quat_rotate
 from inbetween_jax.geometry.quaternion import quat_fix_sign_np, quat_slerp
 
@@ -179,7 +179,6 @@ def check_mirror(skel, forward_axis, source, what: str = "transition bank mirror
     """UserError (one line, naming ``source``) when the rig ``skel`` has no mirror
     (:func:`~inbetween_jax.geometry.mirror.rest_side_axis`), or the root's facing axis lies across the mirror (the
     mirror image would face backwards)."""
-    from inbetween_jax.geometry.mirror import rest_side_axis
     try:
         axis = rest_side_axis(skel.offsets, skel.mirror_map())
     except ValueError as e:
