@@ -227,6 +227,69 @@ def test_failed_selection_leaves_the_latest_step_and_says_how_to_select(tmp_path
     assert not os.path.exists(os.path.join(run_dir, "selection.json")) and load_run(run_dir).step == 2
 
 
+def test_every_position_scores_each_start_and_bootstraps_over_clips():
+    """The every-position table: each clip's error is the mean over its gap starts of the protocol's own
+    per-gap error (an independent route through ``position_error``); linear against itself is exactly 1 with a
+    zero-width interval; the interval holds the ratio, is reproducible and widens with fewer clips."""
+    from inbetween_jax.data import load_motions
+    from inbetween_jax.data.features import Normalizer
+    from inbetween_jax.evaluation.infilling import test_clips
+    from inbetween_jax.models.cae import bench
+    from inbetween_jax.models.cae.features import num_features
+    from inbetween_jax.models.cae.masks import frame_mask_image
+    motions = load_motions("embedded", "test")
+    j = motions[0].skeleton.num_joints
+    d = num_features(j)
+    norm = Normalizer(np.zeros(d, np.float32), np.ones(d, np.float32))
+    x = test_clips(motions, norm, 96, 96)[:6]
+    herm, lin = bench._baseline("hermite"), bench._baseline("linear")
+    got = bench.every_position(herm, x, norm, j, 30.0)
+    assert set(got) == {1, 2}                                  # a 120-frame gap does not fit 96 frames
+    assert got[1]["starts"] == list(range(10, 96 - 30 - 10 + 1, 10)) and got[2]["starts"] == [10, 20]
+    n, _, t = x.shape
+    for i in (0, 4):
+        want = []
+        for a in got[2]["starts"]:
+            fm = np.broadcast_to(gap_frames(t, [(a, a + 60)]), (1, t))
+            pred = herm(x[i:i + 1], frame_mask_image(fm, j))
+            want.append(position_error(pred, x[i:i + 1], norm, j, frames=1.0 - fm)[0])
+        assert got[2]["per_clip"][i] == pytest.approx(np.mean(want), rel=1e-5)
+    ref = bench.every_position(lin, x, norm, j, 30.0)
+    same = bench.ratio_interval(ref[1]["per_clip"], ref[1]["per_clip"])
+    assert same["ratio"] == same["lo"] == same["hi"] == pytest.approx(1.0)
+    ri = bench.ratio_interval(got[1]["per_clip"], ref[1]["per_clip"])
+    assert ri["ratio"] == pytest.approx(got[1]["per_clip"].sum() / ref[1]["per_clip"].sum())
+    assert ri["lo"] < ri["ratio"] < ri["hi"] and ri == bench.ratio_interval(got[1]["per_clip"], ref[1]["per_clip"])
+    few = bench.ratio_interval(got[1]["per_clip"][:3], ref[1]["per_clip"][:3])
+    assert few["hi"] - few["lo"] > 0 and ri["ratio"] != pytest.approx(1.0)
+
+
+def test_bench_feeds_each_model_in_its_own_units():
+    """A model trained with other statistics than the table's first model gets the same clips in its own units:
+    a model that fills every gap with 0 in its own units (its mean) returns its mean, not the table's."""
+    from inbetween_jax.data.features import Normalizer
+    from inbetween_jax.models.cae import bench
+    rng = np.random.default_rng(0)
+    d, t = 12, 16
+    table = Normalizer(rng.normal(size=d).astype(np.float32), rng.uniform(0.5, 2, d).astype(np.float32))
+    own = Normalizer(rng.normal(size=d).astype(np.float32), rng.uniform(0.5, 2, d).astype(np.float32))
+
+    class ZeroFill:
+        normalizer = own
+
+        def predict(self, x, mask):
+            return x * mask
+    x = rng.normal(size=(3, d, t)).astype(np.float32)
+    mask = np.ones_like(x)
+    mask[:, :, 5:9] = 0.0
+    out = bench.in_table_units(ZeroFill(), table)(x, mask)
+    np.testing.assert_allclose(out[:, :, 5:9], np.broadcast_to(table(own.mean)[None, :, None], (3, d, 4)),
+                               rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(out[:, :, :5], x[:, :, :5], rtol=1e-5, atol=1e-5)   # known frames unchanged
+    same = bench.in_table_units(type("Same", (ZeroFill,), {"normalizer": table})(), table)(x, mask)
+    assert np.array_equal(same, x * mask)                                       # equal statistics: no conversion
+
+
 @pytest.mark.slow
 def test_bench_quick_runs(tmp_path):
     """The bench finds every run under a folder of run folders (one row each) and fills both tables."""
@@ -252,6 +315,15 @@ def test_bench_quick_runs(tmp_path):
     ratio = [x for x in r["rows"] if x["table"] == "cae_time_matched" and x["variant"] == "cae_residual"
              and x["frames"] == 30 and x["metric"] == "ratio_to_linear"]
     assert len(ratio) == 1 and 0.5 < ratio[0]["value"] < 1.5 and "Time-matched gaps" in r["markdown"]
+    # every gap position: a ratio with its interval per learned row, the linear row in cm only
+    ep = [x for x in r["rows"] if x["table"] == "cae_every_position" and x["variant"] == "cae_residual"
+          and x["frames"] == 30]
+    ep = {x["metric"]: x["value"] for x in ep}
+    assert set(ep) == {"mpjpe_cm", "ratio_to_linear", "ratio_to_linear_lo95", "ratio_to_linear_hi95"}
+    assert ep["ratio_to_linear_lo95"] <= ep["ratio_to_linear"] <= ep["ratio_to_linear_hi95"]
+    assert {x["metric"] for x in r["rows"] if x["table"] == "cae_every_position" and x["model"] == "linear"} == {
+        "mpjpe_cm"}
+    assert "The same gaps at every position" in r["markdown"] and r["every_position"]["linear"][4]["starts"]
     assert r["table1"]["linear"][0] is None and all(len(v) == 3 for v in r["table1"].values())
     assert set(r["table2"]["cae"]) == {"sigma=1.0", "sigma=1.5", "p=0.3", "p=0.5"}
     assert set(r["bones"]) == {"holden1d", "vanilla", "cae", "cae_residual", "cae_residual:improved_mirror"}

@@ -1,7 +1,10 @@
 """CAE benchmark: the paper's Table 1 (reconstruction / 60 / 120-frame gaps) and Table 2 (de-noising) for
 linear interpolation, the Holden-style 1D-conv AE, the Vanilla AE and the CAE, plus bone-length spread, and
 a time-matched table: reconstruction (no gap) and 1 s / 2 s / 4 s gaps (30 / 60 / 120 frames at 30 Hz), each
-gap also as a ratio to linear fill.  Two non-learned rows (``BASELINES``): linear fill (the paper's) and the
+gap also as a ratio to linear fill.  The time-matched gap sits in the middle of each clip, so it is scored on as
+many gaps as there are test clips (11 on the embedded CMU split); the same gaps are therefore also put at every
+position (:func:`every_position`) and their ratio to linear fill given with a 95 % bootstrap interval over the
+clips (:func:`ratio_interval`).  Two non-learned rows (``BASELINES``): linear fill (the paper's) and the
 limited cubic Hermite fill (:func:`inbetween_jax.baselines.hermite_fill`, not in the paper), the pre-fill of
 ``model.fill=hermite`` runs, so the tables show how much of a residual model's number is its fill alone.
 
@@ -33,9 +36,12 @@ PAPER_T1 = {"linear": ("n/a", "10.45 (± 15.5)", "17.04 (± 24.4)"), "holden1d":
 BASELINES = ("linear", "hermite")   # non-learned rows: their fill functions (baselines.linear_fill / hermite_fill)
 VARIANT_ORDER = ("holden1d", "vanilla", "cae", "holden1d_residual", "vanilla_residual", "cae_residual")
 SECONDS = (1, 2, 4)   # time-matched gaps
+POSITION_STRIDE = 10  # every-position table: frames between gap starts
+POSITION_MARGIN = 10  # every-position table: known frames kept before and after the gap
+BOOTSTRAP = 2000      # every-position table: resamples of the clips for the 95 % interval
 TRAIN_HINT = "inbetween train cae --run-dir runs/cae [--preset cpu model.variant=vanilla|holden1d]"
 
-__all__ = ["find_runs", "run", "val_score"]
+__all__ = ["find_runs", "run", "val_score", "every_position", "ratio_interval", "in_table_units"]
 
 
 def find_runs(run_dir: str | None) -> dict:
@@ -79,7 +85,7 @@ def run(source: str | None, results_dir: str, run_dir: str | None, quick: bool =
     """Evaluate every CAE run of ``run_dir``; returns ``{"markdown", "rows", ...the tables}``."""
     from inbetween_jax.data import load_motions, resolve_source
     from inbetween_jax.evaluation import infilling as proto
-    from inbetween_jax.models.cae.infer import fill, load
+    from inbetween_jax.models.cae.infer import load
 
     runs = find_runs(run_dir)
     if not runs:
@@ -100,14 +106,15 @@ def run(source: str | None, results_dir: str, run_dir: str | None, quick: bool =
     x = proto.test_clips(motions, norm, limit=8 if quick else None)
     corrupt = proto.corruptions(x, j)
     methods = list(BASELINES) + sorted(models, key=lambda v: (VARIANT_ORDER.index(v.partition(":")[0]), v))
-    predictors = {meth: _baseline(meth) if meth in BASELINES else
-                  (lambda inp, mask, m=models[meth]: fill(m, inp, mask)) for meth in methods}
+    predictors = {meth: _baseline(meth) if meth in BASELINES else in_table_units(models[meth], norm)
+                  for meth in methods}
     tables = {}
     for meth in methods:
         tables[meth] = proto.evaluate_method(predictors[meth], x, corrupt, norm, j, ref.skeleton.parents,
                                              learned=meth not in BASELINES)
     fps = float(motions[0].fps)
     timed = {meth: _time_matched(predictors[meth], x, norm, j, fps, tables[meth]["table1"][0]) for meth in methods}
+    positions = {meth: every_position(predictors[meth], x, norm, j, fps) for meth in methods}
     result = {"source": src, "note": "trained checkpoints", "runs": {v: r.run_dir for v, r in runs.items()},
               "num_clips": int(x.shape[0]), "clip_length": int(x.shape[2]), "fps": fps,
               "test_files": [os.path.basename(m.source) for m in motions],
@@ -117,6 +124,11 @@ def run(source: str | None, results_dir: str, run_dir: str | None, quick: bool =
               "table1_seconds": {m: tables[m]["table1_seconds"] for m in methods},
               "table2": {m: tables[m]["table2"] for m in methods},
               "time_matched": timed,
+              "every_position": {m: {s: {**v, "per_clip": v["per_clip"].tolist()} for s, v in positions[m].items()}
+                                 for m in methods},
+              "every_position_ratio": {m: {s: ratio_interval(positions[m][s]["per_clip"],
+                                                              positions["linear"][s]["per_clip"])
+                                           for s in positions[m]} for m in methods if m != "linear"},
               "bones": {m: tables[m]["bones"] for m in methods if tables[m]["bones"] is not None},
               "wall_s": time.time() - t0}
     result["rows"] = _rows(result, methods, _data_name(src))
@@ -157,6 +169,23 @@ def _val_motions(source: str) -> list:
     return load_motions(source, "val")
 
 
+def in_table_units(model, norm):
+    """``predict(x, mask)`` of a trained model on clips normalised with the table's statistics ``norm`` (the
+    first model's): a model trained with other statistics (another source or split) gets its input in its own
+    units and its output is put back in the table's, so every row sees the same clips."""
+    from inbetween_jax.models.cae.infer import fill
+    own = model.normalizer
+    if np.array_equal(own.mean, norm.mean) and np.array_equal(own.std, norm.std):
+        return lambda inp, mask: fill(model, inp, mask)
+
+    def predict(inp, mask):
+        raw = norm.inverse(np.swapaxes(np.asarray(inp, np.float64), -1, -2))
+        out = fill(model, np.swapaxes(own(raw), -1, -2).astype(np.float32), mask)
+        return np.swapaxes(norm(own.inverse(np.swapaxes(np.asarray(out, np.float64), -1, -2))), -1, -2
+                           ).astype(np.float32)
+    return predict
+
+
 def _baseline(name: str):
     """The fill function of a non-learned row: ``predict(x_norm, mask)`` (the input is masked first)."""
     from inbetween_jax.baselines import hermite_fill, linear_fill
@@ -184,6 +213,43 @@ def _time_matched(predict, x, norm, num_joints: int, fps: float, recon) -> dict:
     return {"recon": recon, "gaps": gaps}
 
 
+def every_position(predict, x, norm, num_joints: int, fps: float) -> dict:
+    """``{seconds: {"frames", "starts", "per_clip"}}``: a gap of round(s * fps) frames put at every start from
+    ``POSITION_MARGIN`` in steps of ``POSITION_STRIDE`` while ``POSITION_MARGIN`` known frames stay after it;
+    ``per_clip`` (N,) is each clip's mean joint error (cm) over the gap frames of every start.  A clip's gap
+    frames are as many at every start, so the mean of ``per_clip`` is the mean over every scored frame."""
+    from inbetween_jax.metrics import joint_distances
+    from inbetween_jax.models.cae.features import body_positions
+    from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
+    n, _, t = x.shape
+    truth = body_positions(x, norm, num_joints)                       # (N, T, J, 3)
+    out = {}
+    for sec in SECONDS:
+        g = int(round(sec * fps))
+        starts = list(range(POSITION_MARGIN, t - g - POSITION_MARGIN + 1, POSITION_STRIDE))
+        if not starts:
+            continue
+        per_clip = np.zeros(n)
+        for a in starts:
+            fm = np.broadcast_to(gap_frames(t, [(a, a + g)]), (n, t))
+            pred = body_positions(predict(x, frame_mask_image(fm, num_joints)), norm, num_joints)
+            err = np.asarray(joint_distances(pred[:, a:a + g], truth[:, a:a + g]))   # (N, g, J)
+            per_clip += err.mean(axis=(1, 2)) / len(starts)
+        out[sec] = {"frames": g, "starts": starts, "per_clip": per_clip}
+    return out
+
+
+def ratio_interval(ours, linear, seed: int = 0) -> dict:
+    """``{"ratio", "lo", "hi"}``: mean(ours) / mean(linear) over clips and its 95 % percentile bootstrap
+    interval (``BOOTSTRAP`` resamples of the clips, the same clips for both).  Clips cut at half their length
+    overlap, so they are not independent and the interval is if anything too narrow."""
+    ours, linear = np.asarray(ours, np.float64), np.asarray(linear, np.float64)
+    idx = np.random.default_rng(seed).integers(0, len(ours), (BOOTSTRAP, len(ours)))
+    boot = ours[idx].sum(1) / linear[idx].sum(1)
+    lo, hi = np.percentile(boot, [2.5, 97.5])
+    return {"ratio": float(ours.sum() / linear.sum()), "lo": float(lo), "hi": float(hi)}
+
+
 def _rows(r, methods, data) -> list:
     """Flat records: tables ``cae_table1`` (frames, gap_s), ``cae_table2`` (corruption), ``cae_bones``."""
     from inbetween_jax.evaluation import flat_rows
@@ -201,6 +267,14 @@ def _rows(r, methods, data) -> list:
         tm = [{"method": m, "frames": v["frames"], "gap_s": float(s), "ratio_to_linear": v["err"][0] / lin[s]["err"][0]}
               for s, v in r["time_matched"][m]["gaps"].items() if m != "linear"]
         out += flat_rows(tm, "cae_time_matched", data, model, keys=("frames", "gap_s"))
+        ep = [{"method": m, "frames": r["every_position"][m][s]["frames"], "gap_s": float(s),
+               "mpjpe_cm": float(np.mean(r["every_position"][m][s]["per_clip"])),
+               **({} if m == "linear" else {f"ratio_to_linear{k}": v
+                                            for k, v in (("", r["every_position_ratio"][m][s]["ratio"]),
+                                                         ("_lo95", r["every_position_ratio"][m][s]["lo"]),
+                                                         ("_hi95", r["every_position_ratio"][m][s]["hi"]))})}
+              for s in r["every_position"][m]]
+        out += flat_rows(ep, "cae_every_position", data, model, keys=("frames", "gap_s"))
         t2 = [{"method": m, "corruption": k, "mpjpe_cm": ms[0], "mpjpe_std_cm": ms[1]}
               for k, ms in r["table2"][m].items()]
         out += flat_rows(t2, "cae_table2", data, model, keys=("corruption",))
@@ -230,6 +304,11 @@ def _markdown(r, methods) -> str:
             ratio = "" if m == "linear" else f" [x{g[s]['err'][0] / lin[s]['err'][0]:.2f}]"
             row[c] = _fmt(g[s]["err"]) + ratio
         tm.append(row)
+    ep_lin = r["every_position"]["linear"]
+    ep_cols = [f"{s} s ({v['frames']} fr, {len(v['starts'])} starts)" for s, v in ep_lin.items()]
+    ep = [{"Model": _label(m), **{c: f"{np.mean(r['every_position'][m][s]['per_clip']):.2f}" + (
+        "" if m == "linear" else " [x{ratio:.2f}, {lo:.2f}-{hi:.2f}]".format(**r["every_position_ratio"][m][s]))
+        for s, c in zip(ep_lin, ep_cols)}} for m in methods]
     t1 = [{"Model": _label(m), **{f"{g} Frames": _fmt(v) + (_pasted(r, m) if g == 0 else "")
                                   for g, v in zip((0, 60, 120), r["table1"][m])},
            "paper 0 / 60 / 120": " / ".join(PAPER_T1[m.partition(":")[0].split("_")[0]])} for m in methods]
@@ -247,6 +326,11 @@ def _markdown(r, methods) -> str:
         "mean (± std), root-aligned.",
         markdown_table(tm, tuple(tm_cols), f"Time-matched gaps at {fps:.0f} Hz (scored over the gap; [x r]: ratio "
                        "to linear fill; reconstruction: the clean clip, every frame scored)", keys=("Model",)),
+        markdown_table(ep, tuple(ep_cols), f"The same gaps at every position (a start every {POSITION_STRIDE} "
+                       f"frames, {POSITION_MARGIN} known frames kept at either end; mean error in cm; [x r, lo-hi]: "
+                       f"ratio to linear fill and its 95 % bootstrap interval over the {r['num_clips']} clips, which overlap "
+                       "by half, so it is if anything too narrow)",
+                       keys=("Model",)),
         markdown_table(t1, ("0 Frames", "60 Frames", "120 Frames", "paper 0 / 60 / 120"),
                        "Table 1 (gap in frames; scored over the gap)", keys=("Model",)),
         markdown_table(t1s, ("0 Frames", "30 Frames", "60 Frames"),
