@@ -70,7 +70,8 @@ def train_model(model: str, preset: str | None = None, overrides: Sequence[str] 
     wall = time.time() - t0
     record_training(run_dir, training.num_steps, wall)
     bench = spec.module("bench")
-    if tc.split == "fit" and hasattr(bench, "val_score"):
+    from inbetween_jax.data.datasets import is_fit_split
+    if is_fit_split(tc.split) and hasattr(bench, "val_score"):
         from inbetween_jax.train.select import select_with_bench
         try:
             select_with_bench(run_dir, src, bench, log=log)

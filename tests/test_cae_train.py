@@ -211,6 +211,31 @@ def test_validation_selection(tmp_path):
     assert abs(ratio - 1.0) > 1e-3
 
 
+def test_subject_split_run_selects_on_the_held_out_subjects(tmp_path, monkeypatch):
+    """``train.split=fit-subjects`` trains on the files of the other subjects and asks for the held-out
+    subjects' files (``val-subjects``) to score its checkpoints, recorded in ``selection.json``.  (The embedded
+    set's held-out subject has only clips shorter than the score's 96 frames, so the score itself is taken on
+    the test clips here.)"""
+    from inbetween_jax.data import load_motions
+    from inbetween_jax.data.datasets import split_files
+    from inbetween_jax.models.cae import bench
+    seen = []
+
+    def val_motions(source, split="val"):
+        seen.append(split)
+        return load_motions(source, "test")
+    monkeypatch.setattr(bench, "_val_motions", val_motions)
+    run_dir, _ = _train(tmp_path / "run", ["train.num_steps=1", "train.ckpt_every=1", "train.split=fit-subjects",
+                                           "train.keep_checkpoints=0", "data.max_motions=0"])
+    with open(os.path.join(run_dir, "selection.json")) as f:
+        chosen = json.load(f)
+    assert chosen["split"] == "val-subjects" and set(seen) == {"val-subjects"}
+    assert bench.run_val_split(load_run(run_dir)) == "val-subjects"
+    trained_on = set(load_run(run_dir).data["files"])
+    assert trained_on == {os.path.basename(f) for f in split_files("embedded", "fit-subjects")}
+    assert not trained_on & {os.path.basename(f) for f in split_files("embedded", "val-subjects")}
+
+
 def test_failed_selection_leaves_the_latest_step_and_says_how_to_select(tmp_path, monkeypatch):
     """When the validation score cannot be computed, training still finishes, the run opens at its latest
     checkpoint and the log says which command selects later."""

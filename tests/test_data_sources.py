@@ -283,6 +283,44 @@ def test_val_split_of_every_source_kind(tmp_path, cmu_env):
         assert l_val and set(l_val) <= set(l_train) and not any("subject5" in f for f in l_val)
 
 
+def test_subject_validation_groups_whole_performers():
+    """``by="subject"`` keeps every file of a performer on one side: CMU subjects by trial name, the salsa
+    pair's takes as one group (both dancers are in every take), LaFAN1 ``subjectN``; an unknown grouping and a
+    single subject are one-line errors."""
+    from inbetween_jax.data.sources import _val_group, val_files
+    names = ["a/05_01.bvh", "a/05_02.bvh", "b/07_01.bvh", "b/07_12.bvh", "c/60_01_scaled.bvh", "c/61_01_scaled.bvh",
+             "c/60_02_scaled.bvh", "d/walk1_subject1.bvh", "d/run2_subject1.bvh", "d/walk1_subject3.bvh",
+             "e/take.bvh"]
+    assert [_val_group(f, "subject") for f in names] == [
+        "subject 05", "subject 05", "subject 07", "subject 07", "salsa", "salsa", "salsa", "subject1", "subject1",
+        "subject3", "take"]
+    assert _val_group("c/60_02_scaled.bvh") == "salsa_02" and _val_group("a/05_02.bvh") == "05_02"   # by file
+    for fraction in (0.1, 0.3, 0.5):
+        val = val_files(names, fraction, by="subject")
+        groups = {_val_group(f, "subject") for f in val}
+        assert val and all(_val_group(f, "subject") in groups for f in names if f in val)
+        assert not any(_val_group(f, "subject") in groups for f in names if f not in val)   # whole subjects
+        assert val == [f for f in names if f in val] and set(val_files(names[::-1], fraction, by="subject")) == set(val)
+    with pytest.raises(ValueError, match="unknown validation grouping 'take'"):
+        val_files(names, by="take")
+    with pytest.raises(ValueError, match="at least two subjects"):
+        val_files(["a/05_01.bvh", "a/05_02.bvh"], by="subject")
+
+
+@requires_cmu
+def test_cmu_subject_split_holds_whole_subjects_out(cmu_env):
+    from inbetween_jax.data.datasets import val_note
+    from inbetween_jax.data.sources import _val_group
+    train, val, fit = (split_files("cmu", s) for s in ("train", "val-subjects", "fit-subjects"))
+    assert sorted(val + fit) == sorted(train) and not set(val) & set(fit)
+    held = {_val_group(f, "subject") for f in val}
+    assert held and not held & {_val_group(f, "subject") for f in fit}
+    assert len(val) >= 0.1 * len(train)
+    assert split_files("cmu", "val") != val                    # not the by-file split
+    note = val_note("cmu", "fit-subjects")
+    assert f"validation split {len(val)} of {len(train)}" in note and "whole subjects" in note
+
+
 @requires_cmu
 def test_missing_shared_folder_is_one_line(tmp_path, monkeypatch):
     monkeypatch.setenv("INBETWEEN_SHARED_DATA", str(tmp_path / "nowhere"))

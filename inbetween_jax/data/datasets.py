@@ -51,7 +51,8 @@ from inbetween_jax.data.windows import MotionWindows, windows_from_motions
 EMBEDDED_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "assets", "cmu30")
 EMBEDDED_TEST_PREFIXES = ("13_", "14_")
 CACHE_VERSION = 2
-SPLITS = ("train", "test", "benchmark", "val", "fit")
+SPLITS = ("train", "test", "benchmark", "val", "fit", "val-subjects", "fit-subjects")
+HELD_OUT_SPLITS = {"val": "file", "fit": "file", "val-subjects": "subject", "fit-subjects": "subject"}
 GENERIC_CONTACT_VELFACTOR = 1.0  # squared cm per frame
 
 
@@ -68,18 +69,21 @@ def is_lafan1(source: str) -> bool:
 
 
 def split_files(source: str, split: str) -> list:
-    """BVH paths of ``split`` (``train`` / ``test`` / ``benchmark`` / ``val`` / ``fit``) for ``source``.
+    """BVH paths of ``split`` (``train`` / ``test`` / ``benchmark`` / ``val`` / ``fit`` / ``val-subjects`` /
+    ``fit-subjects``) for ``source``.
 
     A generic folder's files are sorted by name and the last 20 % (at least one) are the test split; a
     folder holding a single file uses it for both.  ``val`` is about 10 % of the ``train`` files (by a hash of
     their names, :func:`~inbetween_jax.data.sources.val_files`), ``fit`` the rest of ``train``.
+    ``val-subjects`` / ``fit-subjects`` cut the same way by whole performers (CMU subject, LaFAN1 subject), so
+    no validation subject is trained on, as the ``cmu`` test subjects are not.
     """
     if split not in SPLITS:
         raise ValueError(f"unknown split {split!r}; choose {', '.join(SPLITS)}")
-    if split in ("val", "fit"):
+    if split in HELD_OUT_SPLITS:
         train = split_files(source, "train")
-        val = sources.val_files(train)
-        return val if split == "val" else [f for f in train if f not in val]
+        val = sources.val_files(train, by=HELD_OUT_SPLITS[split])
+        return val if split.startswith("val") else [f for f in train if f not in val]
     if source == sources.CMU:
         return sources.cmu_split_files(split)
     if source == "embedded" or not is_lafan1(source):
@@ -115,20 +119,33 @@ def split_note(source: str) -> Optional[str]:
 
 
 def val_note(source: str, split: str) -> Optional[str]:
-    """The line naming the validation files when ``split`` is ``val`` or ``fit`` (None otherwise)."""
-    if split not in ("val", "fit"):
+    """The line naming the validation files when ``split`` holds files out (:data:`HELD_OUT_SPLITS`; None
+    otherwise)."""
+    if split not in HELD_OUT_SPLITS:
         return None
-    train, val = split_files(source, "train"), split_files(source, "val")
+    train, val = split_files(source, "train"), split_files(source, val_split_of(split))
     names = [os.path.basename(f) for f in val]
     if len(names) > 6:
         names = names[:5] + ["..."]
+    how = "by a hash of the name" if HELD_OUT_SPLITS[split] == "file" else "whole subjects, by a hash of the subject"
     return (f"data: {resolve_source(source)}: validation split {len(val)} of {len(train)} training files "
-            f"(by a hash of the name), fit on the other {len(train) - len(val)}: {', '.join(names)}")
+            f"({how}), fit on the other {len(train) - len(val)}: {', '.join(names)}")
+
+
+def val_split_of(split: str) -> str:
+    """The validation split that goes with a training split: ``val-subjects`` for ``fit-subjects`` /
+    ``val-subjects``, else ``val``."""
+    return "val-subjects" if HELD_OUT_SPLITS.get(split) == "subject" else "val"
+
+
+def is_fit_split(split: str) -> bool:
+    """Whether a run trained on ``split`` holds validation files out (and so selects its checkpoint on them)."""
+    return split in ("fit", "fit-subjects")
 
 
 def window_settings(source: str, split: str, fps: float = WORKING_FPS) -> dict:
     """Window length, offset, past frames, root forward axis, contact threshold and frame rate of a split."""
-    spec = lafan1.split_spec("train" if split in ("val", "fit") else split)
+    spec = lafan1.split_spec("train" if split in HELD_OUT_SPLITS else split)
     if is_lafan1(source):
         forward, velfactor = lafan1.ROOT_FORWARD_AXIS, lafan1.CONTACT_VELFACTOR
     else:
@@ -199,7 +216,7 @@ def load_dataset(source: Optional[str] = None, split: str = "train", window: Opt
 def _read_motions(source: str, split: str, fps: float, unit_scale: Optional[float]):
     """(motions at ``fps``, the resampling notice or None); one skeleton and one unit per folder."""
     files = split_files(source, split)
-    if source == sources.CMU and split in ("train", "val", "fit"):
+    if source == sources.CMU and (split == "train" or split in HELD_OUT_SPLITS):
         return sources.read_cmu_train(files, split, fps)
     motions, rates = [], Counter()
     scale0 = None
@@ -303,5 +320,5 @@ def _progress(items, desc):
         return items
 
 
-__all__ = ["Motion", "MotionWindows", "SPLITS", "WORKING_FPS", "detect_unit_scale", "load_dataset", "load_motions",
+__all__ = ["Motion", "MotionWindows", "SPLITS", "HELD_OUT_SPLITS", "val_split_of", "is_fit_split", "WORKING_FPS", "detect_unit_scale", "load_dataset", "load_motions",
            "resolve_source", "skeleton_difference", "split_files", "split_note", "val_note", "window_settings"]

@@ -21,6 +21,9 @@ Validation (``val``, for checkpoint selection) is cut from a source's training f
 :data:`VAL_FRACTION` of them (at least one), chosen by a SHA-1 hash of the file name, so the choice is
 deterministic and does not depend on the folder's order.  Both dancers of a ``cmu_pairs`` take go to the same
 side.  ``fit`` is the training files minus ``val``; ``train`` keeps meaning all training files.
+``val-subjects`` / ``fit-subjects`` cut by whole performers instead (``val_files(..., by="subject")``: the CMU
+subject of a trial name, the salsa pair as one, LaFAN1's ``subjectN``), so validation, like the ``cmu`` test
+split, is motion of people never trained on (``train.split=fit-subjects``).
 """
 from __future__ import annotations
 
@@ -42,9 +45,11 @@ VAL_FRACTION = 0.1
 TPOSE_TOL = 0.01            # max |1 - |w|| of the non-root joints' rotations at frame 0 for a T-pose frame
 _TRIAL = re.compile(r"^(\d+)_(\d+)")
 _PAIR = re.compile(r"^(60|61)_(\d+)_scaled$", re.IGNORECASE)
+_LAFAN1_SUBJECT = re.compile(r"_(subject\d+)$", re.IGNORECASE)
+VAL_GROUPINGS = ("file", "subject")
 _JOINT = re.compile(r"^\s*(?:ROOT|JOINT)\s+(\S+)")
 
-__all__ = ["CMU", "NAMED_SOURCES", "VAL_FRACTION", "trial_name", "cmu_split_files", "cmu_train_plan",
+__all__ = ["CMU", "NAMED_SOURCES", "VAL_FRACTION", "VAL_GROUPINGS", "trial_name", "cmu_split_files", "cmu_train_plan",
            "val_files", "reference_skeleton", "to_reference", "read_cmu_train"]
 
 
@@ -136,21 +141,32 @@ def _stem(path: str) -> str:
     return os.path.splitext(os.path.basename(path))[0]
 
 
-def _val_group(path: str) -> str:
-    """What the validation hash is taken of: the file name, or ``salsa_NN`` for both dancers of a take."""
+def _val_group(path: str, by: str = "file") -> str:
+    """What the validation hash is taken of.  ``by="file"``: the file name, or ``salsa_NN`` for both dancers of
+    a take.  ``by="subject"``: the performer -- the CMU subject of a trial name ``NN_MM`` (``salsa`` for every
+    take of the salsa pair, subjects 60 and 61 dance together), LaFAN1's ``subjectN`` suffix, else the file."""
     stem = _stem(path)
     m = _PAIR.match(stem)
+    if by == "subject":
+        if m:
+            return "salsa"
+        t, lf = _TRIAL.match(stem), _LAFAN1_SUBJECT.search(stem)
+        return f"subject {int(t.group(1)):02d}" if t else lf.group(1).lower() if lf else stem.lower()
     return f"salsa_{int(m.group(2)):02d}" if m else stem.lower()
 
 
-def val_files(train: list, fraction: float = VAL_FRACTION) -> list:
-    """The validation files among ``train`` (in ``train``'s order): whole groups (:func:`_val_group`) taken in
-    the order of the SHA-1 of their name until at least ``round(fraction * len(train))`` files (>= 1)."""
+def val_files(train: list, fraction: float = VAL_FRACTION, by: str = "file") -> list:
+    """The validation files among ``train`` (in ``train``'s order): whole groups (:func:`_val_group`; ``by``
+    "file": trials, "subject": performers) taken in the order of the SHA-1 of their name until at least
+    ``round(fraction * len(train))`` files (>= 1)."""
+    if by not in VAL_GROUPINGS:
+        raise ValueError(f"unknown validation grouping {by!r}; choose {', '.join(VAL_GROUPINGS)}")
     groups = OrderedDict()
     for f in train:
-        groups.setdefault(_val_group(f), []).append(f)
+        groups.setdefault(_val_group(f, by), []).append(f)
     if len(groups) < 2:
-        raise ValueError(f"a validation split needs training files of at least two trials, got "
+        what = "trials" if by == "file" else "subjects"
+        raise ValueError(f"a validation split needs training files of at least two {what}, got "
                          f"{len(train)} file{'s' if len(train) != 1 else ''} ({', '.join(map(os.path.basename, train))})")
     want = max(1, int(round(fraction * len(train))))
     chosen = set()

@@ -175,7 +175,8 @@ class TrainConfig:
     log_every: int = 50
     ckpt_every: int = 500
     seed: int = 0
-    split: str = "train"            # data split trained on; "fit" holds the validation files out (selection)
+    split: str = "train"            # data split trained on; "fit" / "fit-subjects" hold validation files /
+                                    # whole subjects out (checkpoint selection on them)
     keep_checkpoints: int = 3       # checkpoints kept on disk (0: all, for selection on the validation split)
 
 

@@ -1,6 +1,6 @@
 """Checkpoint selection on a validation split cut from the training data (never the test windows).
 
-A run trained with ``train.split="fit"`` holds the validation files out of training (see
+A run trained with ``train.split="fit"`` (or ``"fit-subjects"``) holds the validation files out of training (see
 :func:`inbetween_jax.data.datasets.split_files`).  :func:`select_checkpoint` scores every checkpoint of the
 run with the model's ``bench.val_score(run, source)`` (lower is better) and writes ``selection.json`` beside
 ``run.json``; :func:`inbetween_jax.train.run.load_run` then opens the selected step unless a step is asked for.
@@ -29,12 +29,13 @@ def selected_step(run_dir: str) -> int | None:
 
 
 def select_checkpoint(run_dir: str, source: str, score_fn: Callable, metric: str,
-                      log: Callable[[str], None] | None = print) -> dict:
+                      log: Callable[[str], None] | None = print, split: str = "val") -> dict:
     """Score each checkpoint of ``run_dir`` with ``score_fn(run) -> float`` (lower is better) on ``source``'s
-    validation split; record and return ``{"metric", "split", "source", "scores": {step: score}, "step"}``."""
+    validation split ``split``; record and return ``{"metric", "split", "source", "scores": {step: score},
+    "step"}``."""
     from inbetween_jax.train.run import RunError, _checkpoint_steps, load_run
     steps = _checkpoint_steps(os.path.join(run_dir, "checkpoints"))
-    known = _known_scores(run_dir, source, metric)   # steps scored by an earlier selection are not scored again
+    known = _known_scores(run_dir, source, metric, split)   # steps scored by an earlier selection: not again
     scores = {}
     for step in steps:
         if step == 0:
@@ -53,7 +54,7 @@ def select_checkpoint(run_dir: str, source: str, score_fn: Callable, metric: str
     if not scores:
         return {}
     best = min(scores, key=lambda s: (scores[s], -s))
-    out = {"metric": metric, "split": "val", "source": source, "scores": {str(k): v for k, v in scores.items()},
+    out = {"metric": metric, "split": split, "source": source, "scores": {str(k): v for k, v in scores.items()},
            "step": int(best)}
     tmp = os.path.join(run_dir, SELECTION_FILE + ".tmp")
     with open(tmp, "w") as f:
@@ -67,16 +68,19 @@ def select_checkpoint(run_dir: str, source: str, score_fn: Callable, metric: str
 def select_with_bench(run_dir: str, source: str, bench, log: Callable[[str], None] | None = print) -> dict:
     """:func:`select_checkpoint` with a model's ``bench.val_score`` on ``source``, recorded under the bench's
     ``VAL_METRIC`` name (default ``"val L2P"``)."""
+    from inbetween_jax.data.datasets import val_split_of
+    from inbetween_jax.train.run import load_run
+    split = val_split_of(load_run(run_dir, need_checkpoint=False).config.get("train", {}).get("split", "fit"))
     return select_checkpoint(run_dir, source, lambda r: bench.val_score(r, source),
-                             getattr(bench, "VAL_METRIC", "val L2P"), log=log)
+                             getattr(bench, "VAL_METRIC", "val L2P"), log=log, split=split)
 
 
-def _known_scores(run_dir: str, source: str, metric: str) -> dict:
+def _known_scores(run_dir: str, source: str, metric: str, split: str = "val") -> dict:
     path = os.path.join(run_dir, SELECTION_FILE)
     try:
         with open(path) as f:
             old = json.load(f)
-        if old.get("source") == source and old.get("metric") == metric:
+        if old.get("source") == source and old.get("metric") == metric and old.get("split", "val") == split:
             return {int(k): float(v) for k, v in old.get("scores", {}).items()}
     except (OSError, ValueError, TypeError, AttributeError):
         pass

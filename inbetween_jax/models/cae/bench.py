@@ -145,6 +145,13 @@ VAL_METRIC = "val gap error / linear fill's"   # the name selection.json records
 VAL_CLIP = 96          # frames per validation clip (a multiple of the CAE's total pooling, 8)
 
 
+def run_val_split(run) -> str:
+    """The validation split that goes with the split ``run`` trained on (``val-subjects`` for
+    ``fit-subjects``, else ``val``)."""
+    from inbetween_jax.data.datasets import val_split_of
+    return val_split_of(run.config.get("train", {}).get("split", "fit"))
+
+
 def val_score(run, source: str | None) -> float:
     """Checkpoint selection score (lower is better): the run's mean gap error over the time-matched gaps as a
     ratio to linear fill's, on the validation split of ``source`` (files cut from the training data, held out
@@ -154,7 +161,7 @@ def val_score(run, source: str | None) -> float:
     from inbetween_jax.evaluation import infilling as proto
     from inbetween_jax.models.cae.infer import fill, load
     model = load(run)
-    motions = _val_motions(resolve_source(source or run.data.get("source")))
+    motions = _val_motions(resolve_source(source or run.data.get("source")), run_val_split(run))
     x = proto.test_clips(motions, model.normalizer, VAL_CLIP, VAL_CLIP // 2)
     fps = float(motions[0].fps)
     ours = _time_matched(lambda inp, mask: fill(model, inp, mask), x, model.normalizer, model.num_joints, fps, None)
@@ -163,10 +170,10 @@ def val_score(run, source: str | None) -> float:
 
 
 @functools.lru_cache(maxsize=2)
-def _val_motions(source: str) -> list:
+def _val_motions(source: str, split: str = "val") -> list:
     """The validation split's motions of ``source``, read once per process (selection scores every checkpoint)."""
     from inbetween_jax.data import load_motions
-    return load_motions(source, "val")
+    return load_motions(source, split)
 
 
 def in_table_units(model, norm):

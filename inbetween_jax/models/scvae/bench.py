@@ -220,11 +220,11 @@ VAL_SAMPLES = 2
 
 
 @functools.lru_cache(maxsize=2)
-def _val_windows(source: str):
+def _val_windows(source: str, split: str = "val"):
     """The validation windows of ``source`` and their L2P statistics, read once per process (checkpoint
     selection scores every checkpoint of a run on the same windows)."""
     from inbetween_jax.data import l2p_stats, load_dataset
-    val = load_dataset(source, "val", window=N_PAST + max(VAL_LENGTHS) + 5, offset=20)
+    val = load_dataset(source, split, window=N_PAST + max(VAL_LENGTHS) + 5, offset=20)
     x_mean, x_std = l2p_stats(val.global_pose()[1])
     return val, x_mean, x_std
 
@@ -237,7 +237,8 @@ def val_score(run, source: str) -> float:
     from inbetween_jax.evaluation import transition_metrics
     from inbetween_jax.models.scvae import infer
     trained = infer.load(run)
-    val, x_mean, x_std = _val_windows(source)
+    from inbetween_jax.models.cae.bench import run_val_split
+    val, x_mean, x_std = _val_windows(source, run_val_split(run))
     lengths = [n for n in VAL_LENGTHS if n <= trained.cfg.data.trans_max]
     errs = []
     for n in lengths:
