@@ -4,6 +4,7 @@ Real CMU files from the shared data folder: 120 Hz salsa takes (``cmu_pairs``, 1
 120 Hz walks (``cmu_bvh``, Daz/Poser skeleton, about cm) and 30 Hz trials of two skeletons (``cmu_more``).
 """
 import os
+import re
 
 import numpy as np
 import pytest
@@ -251,7 +252,8 @@ def test_cmu_splits(cmu_env):
     assert len(set(names)) == len(names)                       # no trial twice (embedded copies dropped)
     assert set(split_files("embedded", "train")) <= set(train)
     folders = {os.path.basename(os.path.dirname(f)) for f in train}
-    assert folders == {"cmu30", "daz43", "mb31", "cmu_pairs"}  # cmu_bvh: all embedded, held out or other rigs
+    assert folders == {"cmu30", "cmu_bvh", "daz43", "mb31", "cmu_pairs"}
+    assert sorted(_trials(f for f in train if "cmu_bvh" in f)) == ["16_01", "16_02", "18_01"]  # the 31-joint ones
     assert sum(os.path.basename(os.path.dirname(f)) == "mb31" for f in train) == 51
     assert sum("_scaled" in f for f in train) == 24
     assert not set(val) & set(fit) and sorted(val + fit) == sorted(train)
@@ -379,13 +381,14 @@ def test_cmu_windows_and_cache(cmu_env, tmp_path, monkeypatch, capfd):
     from inbetween_jax.data.sources import reference_skeleton
     train = load_dataset("cmu", "train")
     err = capfd.readouterr().err
-    assert "data: cmu: training on 197 files" in err and "3 files on another skeleton" in err
+    assert "data: cmu: training on 200 files" in err and "0 files on another skeleton (none)" in err
     assert "cmu_more/mb31 51 files" in err and "retargeted by bone directions" in err
+    assert re.search(r"cmu_bvh 3 files [0-9.]+ min, retargeted by bone directions", err)   # 16_01, 16_02, 18_01
     assert train.skeleton.names == reference_skeleton().names and train.unit_scale == 1.0
     assert len(train) > 3 * len(load_dataset("embedded", "train"))
     val, fit = load_dataset("cmu", "val"), load_dataset("cmu", "fit")
     assert len(val) + len(fit) == len(train) and not set(val.seq_names) & set(fit.seq_names)
     again = load_dataset("cmu", "train")
-    assert "training on 197 files" in capfd.readouterr().err
+    assert "training on 200 files" in capfd.readouterr().err
     np.testing.assert_array_equal(again.local_quats, train.local_quats)
     assert len(load_dataset("cmu", "test")) == len(load_dataset("embedded", "test"))

@@ -5,7 +5,11 @@ Each output frame puts the template body's bones along the directions of the mat
 (swing only: no twist about a bone's own axis); the hips and chest are oriented by their up and left-right
 vectors; collars, buttocks, head, eyes and fingers keep their rest rotation.  The root is placed so that the hip
 sockets follow the capture's, scaled by the ratio of the two bodies' leg lengths (the mb31 unit is 0.056444 m,
-:data:`MB_UNIT_CM`).  Frame 0 (the cgspeed T-pose) is dropped.  Pure NumPy.
+:data:`MB_UNIT_CM`).  A leading T-pose frame (cgspeed's frame 0) is dropped.  Pure NumPy.
+
+The same 31-joint hierarchy also comes with CMU's ASF bone names (``hip``, ``lfemur``, ...: ``cmu_bvh/16_01.bvh``,
+``16_02``, ``18_01_subjectA_414Group``, in the same unit); :data:`ASF31_TO_MB31` maps them, so those files take the
+same route.
 """
 from __future__ import annotations
 
@@ -13,9 +17,10 @@ import numpy as np
 
 from inbetween_jax.errors import UserError
 
-__all__ = ["MB_UNIT_CM", "MB31_JOINTS", "SWING", "FRAMED", "transfer_mb31"]
+__all__ = ["MB_UNIT_CM", "MB31_JOINTS", "ASF31_TO_MB31", "SWING", "FRAMED", "on_31_joint_rig", "transfer_mb31"]
 
 MB_UNIT_CM = 5.6444
+TPOSE_TOL = 0.03            # max |1 - |w|| of the non-root rotations for frame 0 to count as the rest T-pose
 # template joint -> (its child giving the bone, capture joint pair (from, to)) for the swing-aligned bones
 SWING = {
     "abdomen": ("chest", ("Spine", "Spine1")),
@@ -40,6 +45,22 @@ FRAMED = {
 }
 MB31_JOINTS = tuple(sorted({n for _, pair in SWING.values() for n in pair}
                            | {n for (_, up), (_, side) in FRAMED.values() for n in up + side}))
+# CMU's ASF bone names of the same hierarchy -> the MotionBuilder names above
+ASF31_TO_MB31 = {
+    "hip": "Hips", "lowerback": "LowerBack", "upperback": "Spine", "thorax": "Spine1", "lowerneck": "Neck",
+    "upperneck": "Neck1", "head": "Head",
+    **{f"{s}{a}": f"{side}{m}" for s, side in (("l", "Left"), ("r", "Right")) for a, m in (
+        ("femur", "UpLeg"), ("tibia", "Leg"), ("foot", "Foot"), ("toes", "ToeBase"), ("clavicle", "Shoulder"),
+        ("humerus", "Arm"), ("radius", "ForeArm"), ("wrist", "Hand"), ("hand", "FingerBase"),
+        ("fingers", "HandIndex1"))},
+    "lhipjoint": "LHipJoint", "rhipjoint": "RHipJoint", "lthumb": "LThumb", "rthumb": "RThumb",
+}
+
+
+def on_31_joint_rig(names) -> bool:
+    """Whether joint ``names`` hold every joint :func:`transfer_mb31` reads, under either naming."""
+    names = {ASF31_TO_MB31.get(n, n) for n in names}
+    return set(MB31_JOINTS) <= names
 
 
 def _unit(v):
@@ -54,13 +75,15 @@ def _frame(up, side):
 
 
 def transfer_mb31(capture, template):
-    """capture: a :class:`~inbetween_jax.data.bvh.Motion` on the 31-joint rig (``Hips``, ``LeftUpLeg``, ...);
-    template: one on the 43-joint body (``hip``, ``abdomen``, ...).  Returns the capture's frames but the first
-    (the cgspeed T-pose) as a Motion on the template's skeleton, positions in the template's unit.
+    """capture: a :class:`~inbetween_jax.data.bvh.Motion` on the 31-joint rig (``Hips``, ``LeftUpLeg``, ... or
+    the ASF names ``hip``, ``lfemur``, ...); template: one on the 43-joint body (``hip``, ``abdomen``, ...).
+    Returns the capture's frames, but a leading T-pose frame, as a Motion on the template's skeleton, positions
+    in the template's unit.
 
     Raises UserError (one line, naming the file) when the capture lacks a joint of :data:`MB31_JOINTS`."""
     from inbetween_jax.data.bvh import Motion
-    missing = [n for n in MB31_JOINTS if n not in capture.skeleton.names]
+    cnames = [ASF31_TO_MB31.get(n, n) for n in capture.skeleton.names]
+    missing = [n for n in MB31_JOINTS if n not in cnames]
     if missing:
         raise UserError(f"{capture.source}: not the 31-joint CMU rig (no {', '.join(missing[:4])})")
     from inbetween_jax.geometry.kinematics import forward_kinematics, inverse_kinematics
@@ -69,8 +92,10 @@ def transfer_mb31(capture, template):
     skel = template.skeleton
     names, parents = list(skel.names), skel.parents
     idx = {n: i for i, n in enumerate(names)}
-    cap = capture.global_positions()[1:] * MB_UNIT_CM                     # (T, Jc, 3) cm
-    cidx = {n: i for i, n in enumerate(capture.skeleton.names)}
+    q0 = np.asarray(capture.local_quats[0, 1:, 0], np.float64)
+    first = 1 if capture.num_frames > 1 and float(np.abs(1.0 - np.abs(q0)).max()) < TPOSE_TOL else 0
+    cap = capture.global_positions()[first:] * MB_UNIT_CM                 # (T, Jc, 3) cm
+    cidx = {n: i for i, n in enumerate(cnames)}
     t_len, j_len = cap.shape[0], len(names)
     rest = forward_kinematics(np.tile([1.0, 0, 0, 0], (1, j_len, 1)), skel.offsets[None].astype(np.float64),
                               parents)[1][0]                              # (J, 3) rest positions

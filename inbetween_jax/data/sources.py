@@ -10,8 +10,9 @@ validation split of every source.
   ``cmu_more/mb31/*.bvh`` (another rig: put on the 43-joint body of ``cmu_bvh/02_01.bvh`` by bone directions,
   :func:`~inbetween_jax.data.rig_transfer.transfer_mb31`) and both dancers of every ``cmu_pairs`` take, each as
   a single-person motion.  Trials of CMU subjects 13 and 14 are never
-  trained on, trials already in the embedded set (compared by trial name ``NN_MM``) are dropped, and files whose
-  skeleton lacks a joint of the embedded 21-joint body (the 31-joint ``cmu_bvh`` files, 18_01) are skipped.
+  trained on, trials already in the embedded set (compared by trial name ``NN_MM``) are dropped, the 31-joint
+  ``cmu_bvh`` files (16_01, 16_02, 18_01, with CMU's ASF joint names) take the mb31 route, and files on any
+  other skeleton are skipped.
   Every training motion is restricted to the embedded joints (same order; the 43-joint files' extra joints are
   fingers and eyes, leaves), converted to the embedded unit (the ``cmu_pairs`` files are in 1/128 units; the
   factor comes from :func:`~inbetween_jax.data.features.detect_unit_scale`, made exact by the leg-length ratio
@@ -37,7 +38,7 @@ import numpy as np
 
 CMU = "cmu"
 NAMED_SOURCES = ("embedded", CMU)
-CMU_VERSION = 2             # part of the window-cache key: bump when the conversion below changes
+CMU_VERSION = 3             # part of the window-cache key: bump when the conversion below changes
 MB31_FOLDER = os.path.join("cmu_more", "mb31")     # the 31-joint rig, put on the body by bone directions
 CMU_FOLDERS = ("cmu_bvh", os.path.join("cmu_more", "daz43"), MB31_FOLDER, "cmu_pairs")
 HELD_OUT_SUBJECTS = ("13", "14")
@@ -85,9 +86,9 @@ def _on_reference(path: str, ref_names) -> bool:
 
 def _on_mb31_rig(path: str) -> bool:
     """Whether the file's hierarchy holds every joint :func:`~inbetween_jax.data.rig_transfer.transfer_mb31`
-    reads."""
-    from inbetween_jax.data.rig_transfer import MB31_JOINTS
-    return set(MB31_JOINTS) <= set(_header_joints(path, os.stat(path).st_mtime_ns))
+    reads (under the MotionBuilder or the ASF names)."""
+    from inbetween_jax.data.rig_transfer import on_31_joint_rig
+    return on_31_joint_rig(_header_joints(path, os.stat(path).st_mtime_ns))
 
 
 @functools.lru_cache(maxsize=1)
@@ -121,7 +122,7 @@ def cmu_train_plan() -> tuple:
                 dropped["subjects 13/14"].append(f)
             elif name in seen:
                 dropped["duplicates"].append(f)
-            elif not (_on_mb31_rig(f) if sub == MB31_FOLDER else _on_reference(f, ref_names)):
+            elif not (_on_reference(f, ref_names) or _on_mb31_rig(f)):
                 dropped["other skeleton"].append(f)
             else:
                 files.append(f)
@@ -237,12 +238,13 @@ def read_cmu_train(files: list, split: str, fps: float) -> tuple:
     from inbetween_jax.data.rig_transfer import transfer_mb31
     from inbetween_jax.paths import shared_data_dir
     shared, ref = shared_data_dir(required=True), reference_skeleton()
-    motions, frames, count, scaled = [], Counter(), Counter(), Counter()
+    motions, frames, count, scaled, moved = [], Counter(), Counter(), Counter(), Counter()
     for f in _progress(files, f"reading cmu {split} BVH"):
         label = _folder_label(f, shared)
         raw = read_bvh(f)
-        if label == MB31_FOLDER:
+        if not _on_reference(f, ref.names) and _on_mb31_rig(f):
             raw = transfer_mb31(raw, _body_template())
+            moved[label] += 1
         m, factor = to_reference(raw, ref, fps)
         frames[label] += m.num_frames
         count[label] += 1
@@ -252,7 +254,9 @@ def read_cmu_train(files: list, split: str, fps: float) -> tuple:
     parts = []
     for label in count:
         unit = f", x{scaled[label]:.4g} to the embedded unit" if label in scaled else ""
-        unit += ", retargeted by bone directions" if label == MB31_FOLDER else ""
+        if moved[label]:
+            unit += (", retargeted by bone directions" if moved[label] == count[label]
+                     else f", {moved[label]} retargeted by bone directions")
         parts.append(f"{label} {count[label]} files {frames[label] / fps / 60:.1f} min{unit}")
     what = "training on" if split == "train" else f"{split} split:"
     note = (f"data: cmu: {what} {len(files)} files, {sum(frames.values()) / fps / 60:.1f} min at {fps:g} fps "
