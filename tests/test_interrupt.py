@@ -9,6 +9,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import numpy as np
@@ -19,18 +20,37 @@ from inbetween_jax.data import read_bvh, write_bvh
 ASSETS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "inbetween_jax", "assets", "cmu30")
 
 
-def _interrupt(argv, cwd, after_s: float):
+def _interrupt(argv, cwd, after_s: float, after_line: str = ""):
+    """Run the CLI, send SIGINT ``after_s`` seconds after it printed a stderr line starting with ``after_line``
+    (after start when empty), and return (returncode, seconds from signal to exit, stdout, stderr)."""
     proc = subprocess.Popen([sys.executable, "-m", "inbetween_jax.cli", *map(str, argv)], cwd=cwd,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    lines, seen = [], threading.Event()
+
+    def read_stderr():
+        for line in proc.stderr:
+            lines.append(line)
+            if line.startswith(after_line):
+                seen.set()
+    reader = threading.Thread(target=read_stderr, daemon=True)
+    reader.start()
+    if not after_line:
+        seen.set()
+    while not seen.wait(0.05) and proc.poll() is None:
+        pass
     time.sleep(after_s)
     if proc.poll() is not None:   # too fast to interrupt on this machine: it must at least have succeeded
-        out, err = proc.communicate()
-        assert proc.returncode == 0, err
+        proc.wait()
+        reader.join(10)
+        assert proc.returncode == 0, "".join(lines)
         pytest.skip("the command finished before the interrupt")
     sent = time.monotonic()
     proc.send_signal(signal.SIGINT)
-    out, err = proc.communicate(timeout=60)
-    return proc.returncode, time.monotonic() - sent, out, err
+    out = proc.stdout.read()
+    proc.wait(timeout=60)
+    waited = time.monotonic() - sent
+    reader.join(10)
+    return proc.returncode, waited, out, "".join(lines)
 
 
 def _long_clip(path, frames: int = 6000) -> None:
@@ -48,8 +68,12 @@ def test_ctrl_c_exits_promptly_with_one_line(kind, tmp_path):
     else:
         argv = ["train", "cae", "--preset", "tiny", "--source", "embedded", "--run-dir", tmp_path / "out",
                 "--no-progress", "train.num_steps=100000"]
-    # preview takes about 6 s in all on 2 cores (its sheet and GIF are capped), so it is interrupted at 3 s
-    rc, waited, out, err = _interrupt(argv, tmp_path, after_s=3.0 if kind == "preview" else 6.0)
+    # preview draws its sheet, says so, then draws the GIF's 401 frames (seconds on 2 cores): it is interrupted
+    # as soon as it says the sheet is drawn, so the signal lands in the GIF
+    rc, waited, out, err = _interrupt(argv, tmp_path, after_s=0.0 if kind == "preview" else 6.0,
+                                      after_line="preview: drew" if kind == "preview" else "")
+    if rc == 0 and kind == "preview" and "drew 401 frames" in err:
+        pytest.skip("the GIF was finished before the signal arrived")          # about 1.5 s to spare here
     assert rc == 130, err
     assert waited < 10.0, f"exit took {waited:.1f} s after Ctrl-C"
     lines = [ln for ln in err.replace("\r", "\n").splitlines() if ln.strip()]
@@ -59,13 +83,12 @@ def test_ctrl_c_exits_promptly_with_one_line(kind, tmp_path):
     if kind == "preview":
         out_dir = tmp_path / "out"
         assert not out_dir.exists() or not [f for f in os.listdir(out_dir) if f.endswith((".png", ".gif"))]
+        assert "drew 41 frames" in err and "drew 401" not in err        # stopped inside the GIF
 
 
 def test_interrupt_removes_a_temp_folder_still_being_written(tmp_path):
     """The watcher removes a temporary folder while the main thread may still be writing files into it: the
     folder must be gone afterwards, and the writer's next file must fail rather than recreate it."""
-    import threading
-
     from inbetween_jax.cli import interrupt
     path = interrupt.temp_dir(".out.tmp-", str(tmp_path))
     assert os.path.isdir(path) and path in interrupt._temp
