@@ -1,5 +1,6 @@
-"""Write the 31-joint CMU files of ``cmu_more/mb31`` as BVH files on the 43-joint body of ``cmu_bvh`` / ``daz43``
-(:func:`inbetween_jax.data.rig_transfer.transfer_mb31`; the ``cmu`` source does the same in memory).
+"""Write the 31-joint CMU files of ``cmu_more/mb31`` (or the ASF-named ones of ``cmu_bvh``: 16_01, 16_02, 18_01) as
+BVH files on the 43-joint body of ``cmu_bvh`` / ``daz43`` (:func:`inbetween_jax.data.rig_transfer.transfer_mb31`;
+the ``cmu`` source does the same in memory).
 
     python experiments/retarget_mb31.py ../shared/data/cmu_more/mb31 OUT_DIR [--template FILE.bvh] [--only A.bvh,B.bvh]
 
