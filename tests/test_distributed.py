@@ -24,12 +24,6 @@ STEPS, STOP = 6, 3          # the 2-process run stops after the checkpoint at ST
 BATCH, GAP, HIDDEN = 8, 10, 32
 
 
-def default_sigint() -> None:
-    """In a child before exec: SIGINT unblocked and at its default action."""
-    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
 def _child_env() -> dict:
     path = os.pathsep.join([ROOT, HERE] + [p for p in [os.environ.get("PYTHONPATH")] if p])
     return {"PYTHONPATH": path, "JAX_PLATFORMS": "cpu", "XLA_FLAGS": ""}
@@ -166,14 +160,23 @@ def test_launch_local_returns_first_failure_and_keeps_others_quiet(capfd):
     assert "stdout of process 1" not in cap.out
 
 
-def test_launch_local_ctrl_c_stops_every_process(tmp_path):
-    code = ("import sys; from inbetween_jax.train.distributed import launch_local; "
-            f"sys.exit(launch_local(2, ['--sleep', {str(tmp_path)!r}], module='test_distributed', "
-            f"env={_child_env()!r}))")
+@pytest.mark.parametrize("watcher", [False, True])
+def test_launch_local_ctrl_c_stops_every_process(tmp_path, watcher):
+    """SIGINT to the launcher alone (not its process group) stops both children.  ``watcher``: as the CLI runs
+    it (``train --num-processes 2``), under the Ctrl-C watcher, which ends the launcher at once with status 130
+    and must stop the children it was given."""
+    hooks = "on_start=interrupt.track_process, report=interrupt.say" if watcher else ""
+    # the watcher first, as the CLI does, so no thread (JAX starts some on import) can take the SIGINT
+    code = ("import sys; from inbetween_jax.cli import interrupt; "
+            + ("interrupt.install(); " if watcher else "")
+            + "from inbetween_jax.train.distributed import launch_local; "
+            + f"sys.exit(launch_local(2, ['--sleep', {str(tmp_path)!r}], module='test_distributed', "
+            f"env={_child_env()!r}, {hooks}))")
     # the launcher as a terminal would start it: an earlier test's CLI call may have left SIGINT blocked in
     # this process (inbetween_jax.cli.interrupt), and a child inherits the blocked mask
-    launcher = subprocess.Popen([sys.executable, "-c", code], env=dict(os.environ, **_child_env()), cwd=ROOT,
-                                preexec_fn=default_sigint)
+    from inbetween_jax.train.distributed import sigint_unblocked
+    with sigint_unblocked():
+        launcher = subprocess.Popen([sys.executable, "-c", code], env=dict(os.environ, **_child_env()), cwd=ROOT)
     deadline = time.monotonic() + 60
     while len(os.listdir(tmp_path)) < 2 and time.monotonic() < deadline:
         time.sleep(0.1)

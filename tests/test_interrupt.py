@@ -20,11 +20,13 @@ from inbetween_jax.data import read_bvh, write_bvh
 ASSETS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "inbetween_jax", "assets", "cmu30")
 
 
-def _interrupt(argv, cwd, after_s: float, after_line: str = ""):
-    """Run the CLI, send SIGINT ``after_s`` seconds after it printed a stderr line starting with ``after_line``
-    (after start when empty), and return (returncode, seconds from signal to exit, stdout, stderr)."""
+def _interrupt(argv, cwd, after_s: float, after_line: str = "", env=None):
+    """Run the CLI (with ``env`` added to the environment), send SIGINT ``after_s`` seconds after it printed a
+    stderr line starting with ``after_line`` (after start when empty), and return (returncode, seconds from
+    signal to exit, stdout, stderr)."""
     proc = subprocess.Popen([sys.executable, "-m", "inbetween_jax.cli", *map(str, argv)], cwd=cwd,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=dict(os.environ, **(env or {})))
     lines, seen = [], threading.Event()
 
     def read_stderr():
@@ -115,3 +117,18 @@ def test_interrupt_removes_a_temp_folder_still_being_written(tmp_path):
     interrupt.untrack(path)
     assert failed, "the writer never noticed the folder was gone"
     assert os.listdir(tmp_path) == []
+
+
+def test_a_launched_child_exits_130_without_a_line(tmp_path):
+    """A child of the local launcher (``train --num-processes N``: ``launch_local`` sets ``QUIET_ENV``) ends with
+    130 on Ctrl-C and prints no line of its own, so the terminal shows the launcher's one line only."""
+    from inbetween_jax.cli.interrupt import QUIET_ENV
+    from inbetween_jax.train.distributed import QUIET_INTERRUPT_ENV
+    assert QUIET_ENV == QUIET_INTERRUPT_ENV
+    _long_clip(tmp_path / "long.bvh")
+    rc, waited, out, err = _interrupt(["preview", tmp_path / "long.bvh", "--gif", "--out", tmp_path / "out"],
+                                      tmp_path, after_s=0.0, after_line="preview: drew", env={QUIET_ENV: "1"})
+    if rc == 0 and "drew 401 frames" in err:
+        pytest.skip("the GIF was finished before the signal arrived")
+    assert rc == 130 and waited < 10.0, err
+    assert "interrupted" not in err and "Traceback" not in err, err

@@ -13,6 +13,7 @@ the inputs print one line ``inbetween: error: ...`` and exit with status 2; a bu
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from inbetween_jax.errors import UserError
@@ -86,11 +87,13 @@ def main(argv=None) -> int:
 def entry() -> None:
     """Console-script entry point: prompt Ctrl-C handling, then :func:`main`."""
     from inbetween_jax.cli import interrupt
-    interrupt.install()
+    quiet = bool(os.environ.get(interrupt.QUIET_ENV))
+    interrupt.install(None if quiet else "interrupted")
     try:
         code = main()
     except KeyboardInterrupt:
-        print("inbetween: interrupted", file=sys.stderr)
+        if not quiet:
+            print("inbetween: interrupted", file=sys.stderr)
         code = 130
     sys.exit(code)
 

@@ -6,7 +6,9 @@ every thread and a watcher thread waits for it with ``sigwait``: it wakes up as 
 long calls release the GIL), removes the temporary folders made with :func:`temp_dir`, prints one line and
 ends the process with status 130.  The main thread keeps running meanwhile, so each folder is first
 renamed aside (no new file can land in it) and then removed, and the main thread's own error lines
-(:func:`say`) wait for the exit instead of following the interrupt's line.  Outputs are only moved into
+(:func:`say`) wait for the exit instead of following the interrupt's line.  Child processes registered with
+:func:`track_process` (``train --num-processes N``) get the SIGINT too and are killed if they have not ended
+within :data:`CHILD_GRACE_S`, so none outlives the command when only it was signalled.  Outputs are only moved into
 place inside :func:`critical` sections, which an interrupt lets finish first, so nothing is left
 half-written.
 """
@@ -16,14 +18,18 @@ import contextlib
 import os
 import shutil
 import signal
+import subprocess
 import sys
 import tempfile
 import threading
+import time
 
-__all__ = ["install", "temp_dir", "track", "untrack", "critical", "say"]
+__all__ = ["install", "temp_dir", "track", "untrack", "track_process", "critical", "say"]
 
+CHILD_GRACE_S = 5.0
 _lock = threading.RLock()
 _temp: set[str] = set()
+_children: list = []
 _state = {"installed": False, "pending": False, "depth": 0, "message": "interrupted"}
 
 
@@ -36,13 +42,28 @@ def _remove(path: str) -> None:
     shutil.rmtree(doomed, ignore_errors=True)
 
 
+def _stop_children() -> None:
+    alive = [p for p in _children if p.poll() is None]
+    for p in alive:
+        p.send_signal(signal.SIGINT)
+    deadline = time.monotonic() + CHILD_GRACE_S
+    for p in alive:
+        try:
+            p.wait(timeout=max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()
+
+
 def _exit_now() -> None:
     """Called with ``_lock`` held, which it never releases: :func:`say` in other threads waits for the exit."""
+    _stop_children()
     for path in list(_temp):
         _remove(path)
     try:
-        sys.stderr.write(f"inbetween: {_state['message']}\n")
-        sys.stderr.flush()
+        if _state["message"] is not None:
+            sys.stderr.write(f"inbetween: {_state['message']}\n")
+            sys.stderr.flush()
     finally:
         os._exit(130)
 
@@ -57,8 +78,12 @@ def _watch() -> None:
             _exit_now()
 
 
-def install(message: str = "interrupted") -> None:
-    """Route Ctrl-C to the watcher thread (main thread only; a no-op elsewhere or when already installed)."""
+QUIET_ENV = "INBETWEEN_QUIET_INTERRUPT"      # set by the local launcher for its children: it prints the line
+
+
+def install(message: str | None = "interrupted") -> None:
+    """Route Ctrl-C to the watcher thread (main thread only; a no-op elsewhere or when already installed).
+    ``message`` None: exit with status 130 and print nothing (a child whose launcher prints the line)."""
     _state["message"] = message
     if _state["installed"] or threading.current_thread() is not threading.main_thread():
         return
@@ -93,6 +118,13 @@ def track(path: str) -> None:
 def untrack(path: str) -> None:
     with _lock:
         _temp.discard(path)
+
+
+def track_process(proc) -> None:
+    """Stop ``proc`` (a :class:`subprocess.Popen`) if this process is interrupted: SIGINT, then SIGKILL after
+    :data:`CHILD_GRACE_S` seconds."""
+    with _lock:
+        _children.append(proc)
 
 
 @contextlib.contextmanager

@@ -22,6 +22,7 @@ jax 0.10 (nothing to configure; ``"mpi"`` is the alternative).  Each CPU process
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import socket
@@ -29,7 +30,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 import jax
 
@@ -39,6 +40,7 @@ __all__ = ["ENV_COORDINATOR", "ENV_NUM_PROCESSES", "ENV_PROCESS_ID", "initialize
 ENV_COORDINATOR = "INBETWEEN_COORDINATOR"
 ENV_NUM_PROCESSES = "INBETWEEN_NUM_PROCESSES"
 ENV_PROCESS_ID = "INBETWEEN_PROCESS_ID"
+QUIET_INTERRUPT_ENV = "INBETWEEN_QUIET_INTERRUPT"    # = cli.interrupt.QUIET_ENV: the launcher says "interrupted"
 
 
 def _env_int(name: str) -> int | None:
@@ -138,19 +140,34 @@ def _stop(procs: Sequence[subprocess.Popen], grace_s: float) -> None:
             p.wait()
 
 
+def _to_stderr(line: str) -> None:
+    print(line, file=sys.stderr)
+
+
 def _exit_code(rc: int) -> int:
     return 128 - rc if rc < 0 else rc      # killed by signal s -> 128 + s, as a shell reports it
 
 
-def _unblock_sigint() -> None:
-    """In a child before exec: the CLI's Ctrl-C watcher (:mod:`inbetween_jax.cli.interrupt`) blocks SIGINT in
-    the launcher, and a child would inherit that mask and never see the SIGINT it is stopped with."""
-    if hasattr(signal, "pthread_sigmask"):
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+@contextlib.contextmanager
+def sigint_unblocked():
+    """SIGINT unblocked in the calling thread while children are started, so they inherit an unblocked mask: the
+    CLI's Ctrl-C watcher (:mod:`inbetween_jax.cli.interrupt`) blocks SIGINT in the launcher, and a child would
+    inherit that and never see the SIGINT it is stopped with.  Done around ``Popen`` rather than in a
+    ``preexec_fn``, which makes Python fork a multithreaded JAX process (JAX warns of it)."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 def launch_local(num_processes: int, argv: Sequence[str], module: str = "inbetween_jax.cli",
-                 env: Mapping[str, str] | None = None, grace_s: float = 5.0) -> int:
+                 env: Mapping[str, str] | None = None, grace_s: float = 5.0,
+                 on_start: Callable[[subprocess.Popen], None] | None = None,
+                 report: Callable[[str], None] | None = None) -> int:
     """Run ``python -m module *argv`` as ``num_processes`` cooperating local processes; returns an exit code.
 
     Each child gets ``INBETWEEN_COORDINATOR=127.0.0.1:<free port>``, ``INBETWEEN_NUM_PROCESSES`` and
@@ -161,24 +178,31 @@ def launch_local(num_processes: int, argv: Sequence[str], module: str = "inbetwe
 
     Every child sees all local devices: on a machine with accelerators pass ``env={"JAX_PLATFORMS": "cpu"}``
     for a CPU check (a single process already drives all local accelerators through the mesh).
+
+    ``on_start(proc)`` is called with each child as it starts (the CLI registers them with its Ctrl-C watcher,
+    :func:`inbetween_jax.cli.interrupt.track_process`, which ends the launcher without returning here);
+    ``report(line)`` prints a failed child's stderr lines (default: to stderr).
     """
     n = int(num_processes)
     if n < 1:
         raise ValueError(f"the number of processes must be >= 1, got {num_processes}")
     base = dict(os.environ, **(env or {}))
-    base.update({ENV_COORDINATOR: f"127.0.0.1:{_free_port()}", ENV_NUM_PROCESSES: str(n)})
+    base.update({ENV_COORDINATOR: f"127.0.0.1:{_free_port()}", ENV_NUM_PROCESSES: str(n),
+                 QUIET_INTERRUPT_ENV: "1"})
     cmd = [sys.executable, "-m", module, *map(str, argv)]
     procs: list[subprocess.Popen] = []
     logs: list = []
     try:
         for pid in range(n):
             child_env = dict(base, **{ENV_PROCESS_ID: str(pid)})
-            if pid == 0:
-                procs.append(subprocess.Popen(cmd, env=child_env, preexec_fn=_unblock_sigint))
-            else:
+            quiet = {}
+            if pid > 0:
                 logs.append(tempfile.TemporaryFile())
-                procs.append(subprocess.Popen(cmd, env=child_env, stdout=subprocess.DEVNULL, stderr=logs[-1],
-                                              preexec_fn=_unblock_sigint))
+                quiet = {"stdout": subprocess.DEVNULL, "stderr": logs[-1]}
+            with sigint_unblocked():
+                procs.append(subprocess.Popen(cmd, env=child_env, **quiet))
+            if on_start is not None:
+                on_start(procs[-1])
         while True:
             codes = [p.poll() for p in procs]
             failed = [(pid, c) for pid, c in enumerate(codes) if c not in (None, 0)]
@@ -189,8 +213,7 @@ def launch_local(num_processes: int, argv: Sequence[str], module: str = "inbetwe
                     logs[pid - 1].seek(0)
                     tail = logs[pid - 1].read()[-4000:].decode(errors="replace").rstrip()
                     if tail:
-                        print("\n".join(f"[process {pid}] {line}" for line in tail.splitlines()),
-                              file=sys.stderr)
+                        (report or _to_stderr)("\n".join(f"[process {pid}] {line}" for line in tail.splitlines()))
                 return _exit_code(code)
             if all(c == 0 for c in codes):
                 return 0
