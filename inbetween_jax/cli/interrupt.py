@@ -8,8 +8,8 @@ ends the process with status 130.  The main thread keeps running meanwhile, so e
 renamed aside (no new file can land in it) and then removed, and the main thread's own error lines
 (:func:`say`) wait for the exit instead of following the interrupt's line.  Child processes registered with
 :func:`track_process` (``train --num-processes N``) get the SIGINT too and are killed if they have not ended
-within :data:`CHILD_GRACE_S`, so none outlives the command when only it was signalled.  Outputs are only moved into
-place inside :func:`critical` sections, which an interrupt lets finish first, so nothing is left
+within :data:`CHILD_GRACE_S`, so none outlives the command when only it was signalled.  Outputs are only
+moved into place inside :func:`critical` sections, which an interrupt lets finish first, so nothing is left
 half-written.
 """
 from __future__ import annotations
