@@ -54,9 +54,13 @@ def train_model(model: str, preset: str | None = None, overrides: Sequence[str] 
     training = spec.make_training(cfg, data)
     meta = dict(training.meta)
     meta["data"] = {"source": src, **meta.get("data", {})}
-    write_run(run_dir, model=model, preset=preset, overrides=list(overrides), config=config_to_dict(cfg), **meta)
-    for name, write in training.files.items():     # e.g. the S-CVAE's transition bank (model.bank_base)
-        write(os.path.join(run_dir, name))
+    import jax
+    primary = jax.process_index() == 0      # run-level files once: several processes would race on them
+    if primary:
+        write_run(run_dir, model=model, preset=preset, overrides=list(overrides), config=config_to_dict(cfg),
+                  **meta)
+        for name, write in training.files.items():     # e.g. the S-CVAE's transition bank (model.bank_base)
+            write(os.path.join(run_dir, name))
     if log:
         log(f"{model} ({preset}): {training.describe or 'training'}; {training.num_steps} steps -> {run_dir}")
     tc = cfg.train
@@ -68,6 +72,8 @@ def train_model(model: str, preset: str | None = None, overrides: Sequence[str] 
                              training.num_steps, tc.log_every, tc.ckpt_every, tc.seed, progress=progress, mesh=mesh,
                              max_to_keep=tc.keep_checkpoints or None)
     wall = time.time() - t0
+    if not primary:
+        return run_dir, logged
     record_training(run_dir, training.num_steps, wall)
     bench = spec.module("bench")
     from inbetween_jax.data.datasets import is_fit_split

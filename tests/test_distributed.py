@@ -165,15 +165,17 @@ def test_launch_local_ctrl_c_stops_every_process(tmp_path, watcher):
     """SIGINT to the launcher alone (not its process group) stops both children.  ``watcher``: as the CLI runs
     it (``train --num-processes 2``), under the Ctrl-C watcher, which ends the launcher at once with status 130
     and must stop the children it was given."""
-    hooks = "on_start=interrupt.track_process, report=interrupt.say" if watcher else ""
-    # the watcher first, as the CLI does, so no thread (JAX starts some on import) can take the SIGINT
-    code = ("import sys; from inbetween_jax.cli import interrupt; "
+    hooks = "on_interrupt=interrupt.at_exit, report=interrupt.say" if watcher else ""
+    # as a terminal starts it: SIGINT handled (a shell running the tests in the background has it ignored, and a
+    # child inherits that); then the watcher, as the CLI does, before JAX starts threads that could take the signal
+    code = ("import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+            "from inbetween_jax.cli import interrupt; "
             + ("interrupt.install(); " if watcher else "")
             + "from inbetween_jax.train.distributed import launch_local; "
             + f"sys.exit(launch_local(2, ['--sleep', {str(tmp_path)!r}], module='test_distributed', "
             f"env={_child_env()!r}, {hooks}))")
-    # the launcher as a terminal would start it: an earlier test's CLI call may have left SIGINT blocked in
-    # this process (inbetween_jax.cli.interrupt), and a child inherits the blocked mask
+    # an earlier test's CLI call may have left SIGINT blocked in this process (inbetween_jax.cli.interrupt), and a
+    # child inherits the blocked mask
     from inbetween_jax.train.distributed import sigint_unblocked
     with sigint_unblocked():
         launcher = subprocess.Popen([sys.executable, "-c", code], env=dict(os.environ, **_child_env()), cwd=ROOT)

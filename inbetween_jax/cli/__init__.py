@@ -95,6 +95,7 @@ def entry() -> None:
         if not quiet:
             print("inbetween: interrupted", file=sys.stderr)
         code = 130
+    interrupt.settle()
     sys.exit(code)
 
 

@@ -6,11 +6,10 @@ every thread and a watcher thread waits for it with ``sigwait``: it wakes up as 
 long calls release the GIL), removes the temporary folders made with :func:`temp_dir`, prints one line and
 ends the process with status 130.  The main thread keeps running meanwhile, so each folder is first
 renamed aside (no new file can land in it) and then removed, and the main thread's own error lines
-(:func:`say`) wait for the exit instead of following the interrupt's line.  Child processes registered with
-:func:`track_process` (``train --num-processes N``) get the SIGINT too and are killed if they have not ended
-within :data:`CHILD_GRACE_S`, so none outlives the command when only it was signalled.  Outputs are only
-moved into place inside :func:`critical` sections, which an interrupt lets finish first, so nothing is left
-half-written.
+(:func:`say`) wait for the exit instead of following the interrupt's line.  Functions registered with
+:func:`at_exit` run before the line (``train --num-processes N`` stops its child processes there, so none
+outlives the command when only it was signalled).  Outputs are only moved into place inside :func:`critical` sections, which
+an interrupt lets finish first, so nothing is left half-written.
 """
 from __future__ import annotations
 
@@ -18,18 +17,15 @@ import contextlib
 import os
 import shutil
 import signal
-import subprocess
 import sys
 import tempfile
 import threading
-import time
 
-__all__ = ["install", "temp_dir", "track", "untrack", "track_process", "critical", "say"]
+__all__ = ["install", "temp_dir", "track", "untrack", "at_exit", "critical", "say", "settle"]
 
-CHILD_GRACE_S = 5.0
 _lock = threading.RLock()
 _temp: set[str] = set()
-_children: list = []
+_at_exit: list = []
 _state = {"installed": False, "pending": False, "depth": 0, "message": "interrupted"}
 
 
@@ -42,25 +38,13 @@ def _remove(path: str) -> None:
     shutil.rmtree(doomed, ignore_errors=True)
 
 
-def _stop_children() -> None:
-    alive = [p for p in _children if p.poll() is None]
-    for p in alive:
-        p.send_signal(signal.SIGINT)
-    deadline = time.monotonic() + CHILD_GRACE_S
-    for p in alive:
-        try:
-            p.wait(timeout=max(0.0, deadline - time.monotonic()))
-        except subprocess.TimeoutExpired:
-            p.kill()
-            p.wait()
-
-
 def _exit_now() -> None:
     """Called with ``_lock`` held, which it never releases: :func:`say` in other threads waits for the exit."""
-    _stop_children()
-    for path in list(_temp):
-        _remove(path)
     try:
+        for path in list(_temp):
+            _remove(path)
+        for fn in list(_at_exit):
+            fn()
         if _state["message"] is not None:
             sys.stderr.write(f"inbetween: {_state['message']}\n")
             sys.stderr.flush()
@@ -103,6 +87,13 @@ def temp_dir(prefix: str, parent: str) -> str:
     return path
 
 
+def settle() -> None:
+    """Before the main thread ends the process: wait for an interrupt that is already ending it (its clean-up
+    and line come first; with ``--num-processes`` a child's exit can end the launcher's main loop meanwhile)."""
+    with _lock:
+        pass
+
+
 def say(line: str) -> None:
     """Print one line to stderr, unless an interrupt is ending the process (then wait for that exit)."""
     with _lock:
@@ -120,11 +111,10 @@ def untrack(path: str) -> None:
         _temp.discard(path)
 
 
-def track_process(proc) -> None:
-    """Stop ``proc`` (a :class:`subprocess.Popen`) if this process is interrupted: SIGINT, then SIGKILL after
-    :data:`CHILD_GRACE_S` seconds."""
+def at_exit(fn) -> None:
+    """Call ``fn()`` before an interrupt ends the process (``launch_local`` stops its children there)."""
     with _lock:
-        _children.append(proc)
+        _at_exit.append(fn)
 
 
 @contextlib.contextmanager

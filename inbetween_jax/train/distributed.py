@@ -166,7 +166,7 @@ def sigint_unblocked():
 
 def launch_local(num_processes: int, argv: Sequence[str], module: str = "inbetween_jax.cli",
                  env: Mapping[str, str] | None = None, grace_s: float = 5.0,
-                 on_start: Callable[[subprocess.Popen], None] | None = None,
+                 on_interrupt: Callable[[Callable[[], None]], None] | None = None,
                  report: Callable[[str], None] | None = None) -> int:
     """Run ``python -m module *argv`` as ``num_processes`` cooperating local processes; returns an exit code.
 
@@ -179,9 +179,10 @@ def launch_local(num_processes: int, argv: Sequence[str], module: str = "inbetwe
     Every child sees all local devices: on a machine with accelerators pass ``env={"JAX_PLATFORMS": "cpu"}``
     for a CPU check (a single process already drives all local accelerators through the mesh).
 
-    ``on_start(proc)`` is called with each child as it starts (the CLI registers them with its Ctrl-C watcher,
-    :func:`inbetween_jax.cli.interrupt.track_process`, which ends the launcher without returning here);
-    ``report(line)`` prints a failed child's stderr lines (default: to stderr).
+    ``on_interrupt(stop)`` is given, before any child starts, the function that stops them (SIGINT, SIGKILL
+    after ``grace_s``): the CLI passes its Ctrl-C watcher's :func:`inbetween_jax.cli.interrupt.at_exit`, since
+    the watcher ends the launcher without returning here.  ``report(line)`` prints a failed child's stderr lines
+    (default: to stderr).
     """
     n = int(num_processes)
     if n < 1:
@@ -192,6 +193,8 @@ def launch_local(num_processes: int, argv: Sequence[str], module: str = "inbetwe
     cmd = [sys.executable, "-m", module, *map(str, argv)]
     procs: list[subprocess.Popen] = []
     logs: list = []
+    if on_interrupt is not None:
+        on_interrupt(lambda: _stop(procs, grace_s))
     try:
         for pid in range(n):
             child_env = dict(base, **{ENV_PROCESS_ID: str(pid)})
@@ -201,8 +204,6 @@ def launch_local(num_processes: int, argv: Sequence[str], module: str = "inbetwe
                 quiet = {"stdout": subprocess.DEVNULL, "stderr": logs[-1]}
             with sigint_unblocked():
                 procs.append(subprocess.Popen(cmd, env=child_env, **quiet))
-            if on_start is not None:
-                on_start(procs[-1])
         while True:
             codes = [p.poll() for p in procs]
             failed = [(pid, c) for pid, c in enumerate(codes) if c not in (None, 0)]
