@@ -252,6 +252,22 @@ def test_failed_selection_leaves_the_latest_step_and_says_how_to_select(tmp_path
     assert not os.path.exists(os.path.join(run_dir, "selection.json")) and load_run(run_dir).step == 2
 
 
+def test_only_process_0_writes_the_run_files(tmp_path, monkeypatch):
+    """Under ``--num-processes N`` every process runs ``train_model``; only process 0 writes run.json, the wall
+    time and selection.json (they raced on ``run.json.tmp``) and scores checkpoints, here seen from process 1."""
+    import jax
+
+    from inbetween_jax.models.cae import bench
+    scored = []
+    monkeypatch.setattr(bench, "val_score", lambda run, source: scored.append(run) or 1.0)
+    monkeypatch.setattr(jax, "process_index", lambda *a, **k: 1)
+    run_dir, logged = train_model("cae", "tiny", ["train.num_steps=2", "train.ckpt_every=1", "train.split=fit"],
+                                  source="embedded", run_dir=str(tmp_path / "run"), progress=False, log=None)
+    assert logged and not scored
+    for name in ("run.json", "selection.json"):
+        assert not os.path.exists(os.path.join(run_dir, name)), name
+
+
 def test_every_position_scores_each_start_and_bootstraps_over_clips():
     """The every-position table: each clip's error is the mean over its gap starts of the protocol's own
     per-gap error (an independent route through ``position_error``); linear against itself is exactly 1 with a
