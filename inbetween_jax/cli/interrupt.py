@@ -8,8 +8,8 @@ ends the process with status 130.  The main thread keeps running meanwhile, so e
 renamed aside (no new file can land in it) and then removed, and the main thread's own error lines
 (:func:`say`) wait for the exit instead of following the interrupt's line.  Functions registered with
 :func:`at_exit` run before the line (``train --num-processes N`` stops its child processes there, so none
-outlives the command when only it was signalled).  Outputs are only moved into place inside :func:`critical` sections, which
-an interrupt lets finish first, so nothing is left half-written.
+outlives the command when only it was signalled).  Outputs are only moved into place inside :func:`critical`
+sections, which an interrupt lets finish first, so nothing is left half-written.
 """
 from __future__ import annotations
 
@@ -62,7 +62,7 @@ def _watch() -> None:
             _exit_now()
 
 
-QUIET_ENV = "INBETWEEN_QUIET_INTERRUPT"      # set by the local launcher for its children: it prints the line
+QUIET_ENV = "INBETWEEN_QUIET_INTERRUPT"      # set by ``train --num-processes`` for its children: it prints the line
 
 
 def install(message: str | None = "interrupted") -> None:

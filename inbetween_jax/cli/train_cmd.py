@@ -77,7 +77,8 @@ def run(args) -> int:
         from inbetween_jax.cli import interrupt
         from inbetween_jax.train import distributed
         return distributed.launch_local(args.num_processes, _without_num_processes(sys.argv[1:]),
-                                        on_interrupt=interrupt.at_exit, report=interrupt.say)
+                                        env={interrupt.QUIET_ENV: "1"}, on_interrupt=interrupt.at_exit,
+                                        report=interrupt.say)
     from inbetween_jax.train import distributed
     index, count = distributed.initialize()        # a no-op for one process; a cluster launcher is auto-detected
     from inbetween_jax.runner import train_model

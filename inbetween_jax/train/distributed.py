@@ -40,7 +40,6 @@ __all__ = ["ENV_COORDINATOR", "ENV_NUM_PROCESSES", "ENV_PROCESS_ID", "initialize
 ENV_COORDINATOR = "INBETWEEN_COORDINATOR"
 ENV_NUM_PROCESSES = "INBETWEEN_NUM_PROCESSES"
 ENV_PROCESS_ID = "INBETWEEN_PROCESS_ID"
-QUIET_INTERRUPT_ENV = "INBETWEEN_QUIET_INTERRUPT"    # = cli.interrupt.QUIET_ENV: the launcher says "interrupted"
 
 
 def _env_int(name: str) -> int | None:
@@ -167,7 +166,7 @@ def sigint_unblocked():
 def launch_local(num_processes: int, argv: Sequence[str], module: str = "inbetween_jax.cli",
                  env: Mapping[str, str] | None = None, grace_s: float = 5.0,
                  on_interrupt: Callable[[Callable[[], None]], None] | None = None,
-                 report: Callable[[str], None] | None = None) -> int:
+                 report: Callable[[str], None] = _to_stderr) -> int:
     """Run ``python -m module *argv`` as ``num_processes`` cooperating local processes; returns an exit code.
 
     Each child gets ``INBETWEEN_COORDINATOR=127.0.0.1:<free port>``, ``INBETWEEN_NUM_PROCESSES`` and
@@ -181,15 +180,13 @@ def launch_local(num_processes: int, argv: Sequence[str], module: str = "inbetwe
 
     ``on_interrupt(stop)`` is given, before any child starts, the function that stops them (SIGINT, SIGKILL
     after ``grace_s``): the CLI passes its Ctrl-C watcher's :func:`inbetween_jax.cli.interrupt.at_exit`, since
-    the watcher ends the launcher without returning here.  ``report(line)`` prints a failed child's stderr lines
-    (default: to stderr).
+    the watcher ends the launcher without returning here.  ``report(line)`` prints a failed child's stderr lines.
     """
     n = int(num_processes)
     if n < 1:
         raise ValueError(f"the number of processes must be >= 1, got {num_processes}")
     base = dict(os.environ, **(env or {}))
-    base.update({ENV_COORDINATOR: f"127.0.0.1:{_free_port()}", ENV_NUM_PROCESSES: str(n),
-                 QUIET_INTERRUPT_ENV: "1"})
+    base.update({ENV_COORDINATOR: f"127.0.0.1:{_free_port()}", ENV_NUM_PROCESSES: str(n)})
     cmd = [sys.executable, "-m", module, *map(str, argv)]
     procs: list[subprocess.Popen] = []
     logs: list = []
@@ -214,7 +211,7 @@ def launch_local(num_processes: int, argv: Sequence[str], module: str = "inbetwe
                     logs[pid - 1].seek(0)
                     tail = logs[pid - 1].read()[-4000:].decode(errors="replace").rstrip()
                     if tail:
-                        (report or _to_stderr)("\n".join(f"[process {pid}] {line}" for line in tail.splitlines()))
+                        report("\n".join(f"[process {pid}] {line}" for line in tail.splitlines()))
                 return _exit_code(code)
             if all(c == 0 for c in codes):
                 return 0
