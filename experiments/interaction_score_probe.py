@@ -38,10 +38,9 @@ def main(argv=None) -> int:
     p.add_argument("--steps", type=int, default=None, help="classifier steps (default: the bench's)")
     args = p.parse_args(argv)
     import jax
-    import jax.numpy as jnp
 
     from inbetween_jax.evaluation import interaction as proto
-    from inbetween_jax.evaluation.interaction import N_INPUT, classify_windows, to_common_space
+    from inbetween_jax.evaluation.interaction import N_INPUT
     from inbetween_jax.models.interaction.bench import CLASSIFIER_STEPS, _model_method, member, windows_l2p
     from inbetween_jax.models.interaction.config import DataConfig, get_config
     from inbetween_jax.models.interaction.data import load_pairs, split_pairs
@@ -93,21 +92,12 @@ def main(argv=None) -> int:
             rows[f"{name}, first member alone"] = model(_model_method(member(t)))
     print("| method | score 40 / 60 / 80 | x ground truth | speed (cm/frame) | speed std over time |")
     print("|---|---|---|---|---|")
-    prevs = {L: np.asarray(to_common_space(jnp.asarray(b["x"][:, :, N_INPUT - 1:N_INPUT]), b["rel_R"], b["rel_t"]))
-             for L, b in windows.items()}                                   # last context frame, common space
     ref = None
     for name, make in rows.items():
-        score, speed, spread = [], [], []
-        for L, b in windows.items():
-            pred = np.asarray(to_common_space(jnp.asarray(np.asarray(make(b, L), np.float32)), b["rel_R"], b["rel_t"]))
-            clip = np.concatenate([prevs[L], pred], 2)                                   # (B, 2, L + 1, J, 9)
-            score.append(float(np.mean(classify_windows(gdef, params, jnp.asarray(clip))[0])))
-            v = np.linalg.norm(np.diff(clip[..., :3], axis=2), axis=-1) / d.pos_scale  # (B, 2, L, J) cm / frame
-            speed.append(v.mean())
-            spread.append(v.std(2).mean())
+        score, speed, spread = score_windows(gdef, params, windows, make, d.pos_scale)
         ref = np.mean(score) if ref is None else ref
         print(f"| {name} | {' / '.join(f'{s:.2f}' for s in score)} | {np.mean(score) / ref:.2f} | "
-              f"{np.mean(speed):.2f} | {np.mean(spread):.2f} |", flush=True)
+              f"{speed:.2f} | {spread:.2f} |", flush=True)
     if trained:
         stats = proto.l2p_stats(train, d.pos_scale)
         l2p_windows = proto.table1_windows(test, d.pos_scale, 10 ** 6, (30, 50))
@@ -118,6 +108,25 @@ def main(argv=None) -> int:
                       f"{' / '.join(f'{x:.3f}' for x in l2p)}")
     print(f"{time.time() - t0:.0f} s")
     return 0
+
+
+def score_windows(gdef, params, windows, make, pos_scale):
+    """The classifier's mean score on ``windows[L]`` for each L of the in-between frames ``make(b, L)``
+    (B, 2, L, J, 9) key space, each after its last context frame, in the common space; with the mean joint speed
+    and its standard deviation over time (cm per frame).  -> ([score per L], speed, speed std)."""
+    import jax.numpy as jnp
+
+    from inbetween_jax.evaluation.interaction import N_INPUT, classify_windows, to_common_space
+    score, speed, spread = [], [], []
+    for L, b in windows.items():
+        prev = np.asarray(to_common_space(jnp.asarray(b["x"][:, :, N_INPUT - 1:N_INPUT]), b["rel_R"], b["rel_t"]))
+        pred = np.asarray(to_common_space(jnp.asarray(np.asarray(make(b, L), np.float32)), b["rel_R"], b["rel_t"]))
+        clip = np.concatenate([prev, pred], 2)                                           # (B, 2, L + 1, J, 9)
+        score.append(float(np.mean(classify_windows(gdef, params, jnp.asarray(clip))[0])))
+        v = np.linalg.norm(np.diff(clip[..., :3], axis=2), axis=-1) / pos_scale       # (B, 2, L, J) cm / frame
+        speed.append(v.mean())
+        spread.append(v.std(2).mean())
+    return score, float(np.mean(speed)), float(np.mean(spread))
 
 
 if __name__ == "__main__":

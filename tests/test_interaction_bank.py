@@ -10,8 +10,8 @@ import pytest
 from scipy.ndimage import gaussian_filter1d
 
 from inbetween_jax.errors import UserError
-from inbetween_jax.models.interaction.bank import (FADE, SWITCHES, MotionBank, apply_bank, bank_enabled,
-                                                   foot_indices, knn_inbetween, texture)
+from inbetween_jax.models.interaction.bank import (FADE, SWITCHES, MotionBank, apply_bank,
+                                                   arrival_gaps, bank_enabled, foot_indices, knn_inbetween, texture)
 from inbetween_jax.models.interaction.config import ModelConfig, get_config
 from inbetween_jax.models.interaction.infer import load_bank
 from inbetween_jax.shipped import INFERENCE_SWITCHES
@@ -33,6 +33,10 @@ def _query(bank, i):
 def test_knn_of_a_bank_window_is_that_window(bank):
     n = len(bank.index(N_IN, GAP))
     assert n > 20 and bank.gather(N_IN, GAP, [[0, 1]]).shape[:4] == (1, 2, 2, N_IN + GAP + 1)
+    longest = bank.max_gap(N_IN)
+    assert len(bank.index(N_IN, longest)) >= 1
+    with pytest.raises(UserError, match="long enough"):
+        bank.index(N_IN, longest + 1)
     for i in (0, n // 2, n - 1):
         ctx, kp, win = _query(bank, i)
         np.testing.assert_allclose(knn_inbetween(bank, ctx, kp, GAP, 1), win[:, :, N_IN:N_IN + GAP], atol=1e-5)
@@ -133,3 +137,36 @@ def test_texture_never_takes_a_foot_below_the_skating_height(bank, pair_windows)
     assert 0 < w.mean() < 1
     free = apply_bank(bank, cfg, frames, ctx, kp, np.full(B, GAP)) - frames  # no feet named: texture everywhere
     np.testing.assert_allclose(free, band, atol=1e-6)
+
+
+def test_arrival_gap_is_the_first_frame_with_both_characters_within_the_threshold(bank):
+    """A rollout (real keyposes) held 20 cm off its keyposes until frame g and on them from there arrives after g
+    frames (threshold 15 cm); 14.9 cm off counts as arrived and 15.1 cm does not, for either character; one that
+    never arrives takes all its frames; centimetre units (``pos_scale`` 1) give the same gaps."""
+    _, kp, _ = _query(bank, 5)                                               # (1, 2, J, 9) in metres
+    F = 40
+    held = np.repeat(kp[:, :, None], F, 2)                                   # (1, 2, F, J, 9) on the keyposes
+    rows, expect = [], []
+    for g in (3, 17, 39):
+        r = held.copy()
+        r[:, :, :g, :, 0] += 0.2
+        rows.append(r)
+        expect.append(g)
+    for cm, arrived in ((14.9, True), (15.1, False)):
+        for who in (0, 1):
+            r = held.copy()
+            r[:, who, :, :, 2] += cm / 100
+            rows.append(r)
+            expect.append(0 if arrived else F)
+    never = held.copy()
+    never[..., 0] += 0.5
+    rows.append(never)
+    expect.append(F)
+    frames = np.concatenate(rows)
+    keys = np.repeat(kp, len(rows), 0)
+    np.testing.assert_array_equal(arrival_gaps(frames, keys, 0.15, 0.01, lo=0), expect)
+    np.testing.assert_array_equal(arrival_gaps(frames, keys, 0.15, 0.01), np.maximum(expect, 1))
+    cm = frames.copy()
+    cm[..., :3] *= 100
+    np.testing.assert_array_equal(arrival_gaps(cm, keys * np.array([100] * 3 + [1] * 6, np.float32), 0.15, 1.0,
+                                               lo=0), expect)

@@ -243,6 +243,37 @@ def test_bench_model_method_is_told_the_true_or_guessed_gap(pair_windows, pair_t
         _model_method(trained, gap="oracle")
 
 
+def test_bench_guessed_gap_with_the_bank_follows_the_rollouts_own_arrival(pair_windows, pair_train):
+    """With a guessed gap, ``model.bank_guessed`` applies the bank over the gap the network's own rollout takes
+    (the frames before it meets the stop threshold, found on a rollout of ARRIVAL_HORIZON frames), not over the
+    guess; frames after it are the network's and only the frames asked for come back.  Without the switch the
+    guessed rows are the network alone."""
+    from inbetween_jax.models.interaction.bank import MotionBank, arrival_gaps, knn_inbetween
+    from inbetween_jax.models.interaction.bench import ARRIVAL_HORIZON, _model_method
+    fa = np.asarray(pair_train[0].forward_axis, np.float64)
+    J = pair_windows["x"].shape[3]
+    bank = MotionBank.from_pairs(pair_train, TIMED.data.pos_scale, stride=3)
+    only_bank = dataclasses.replace(TIMED.model, bank_k=1, bank_weight=1.0)
+    params = ia.init_params(jax.random.key(0), TIMED, J)
+    alone = Trained(TIMED, params, J, fa, None, 0, "")
+    key, steps, long = jax.random.key(3), 3, ARRIVAL_HORIZON // TIMED.data.n_pred
+    net = _model_method(alone, gap="guess")(pair_windows, long, 1, key)[0]           # (B, 2, 100, J, 9)
+    off = Trained(dataclasses.replace(TIMED, model=only_bank), params, J, fa, None, 0, "", bank)
+    np.testing.assert_array_equal(_model_method(off, gap="guess")(pair_windows, steps, 1, key)[0], net[:, :, :30])
+    on = Trained(dataclasses.replace(TIMED, model=dataclasses.replace(only_bank, bank_guessed=True)), params, J, fa,
+                 None, 0, "", bank)
+    out = _model_method(on, gap="guess")(pair_windows, steps, 1, key)[0]
+    assert out.shape == (len(net), 2, 30, J, 9)
+    arrive = arrival_gaps(net, pair_windows["keypose"], TIMED.model.stop_threshold, TIMED.data.pos_scale)
+    assert len(set(arrive.tolist())) > 1 and np.all(arrive <= bank.max_gap(20))
+    ctx, kp = pair_windows["x"][:, :, :20], pair_windows["keypose"]
+    for i, a in enumerate(arrive):
+        n = min(int(a), 30)
+        near = knn_inbetween(bank, ctx[i:i + 1], kp[i:i + 1], int(a), 1)[0]
+        np.testing.assert_allclose(out[i, :, :n], near[:, :n], atol=1e-5)
+        np.testing.assert_array_equal(out[i, :, n:], net[i, :, n:30])
+
+
 def test_position_weight_in_the_mse():
     """loss.w_pos scales only the position channels' squared error; 1 is the plain MSE."""
     from inbetween_jax.models.interaction.losses import mse

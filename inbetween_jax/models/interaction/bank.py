@@ -11,6 +11,8 @@ each character in its keyframe space as :func:`~.features.keyframe_sample` build
   Popovic 1995) to start at the query's last context frame and end at its keypose (the two end offsets blended
   linearly over the gap) and the ``k`` are averaged.  :func:`apply_bank` blends that with the network's rollout
   (``bank_weight``).
+* :func:`arrival_gaps` -- the gap a rollout takes (the frames before the stop rule's threshold is first met), so
+  that with a guessed gap (``model.bank_guessed``) the bank follows the network's timing, not the guess.
 * :func:`texture` -- motion texturing (Pullen & Bregler 2002): the high-frequency band of the nearest window's
   joint positions (the window minus its Gaussian low-pass of ``texture_sigma`` frames) is added to the
   in-between, faded in and out over :data:`FADE` frames at either end so the context and keypose stay continuous.
@@ -31,10 +33,11 @@ from inbetween_jax.metrics.foot import SKATING_HEIGHT_CM
 from inbetween_jax.models.interaction.features import keyframe_sample
 
 __all__ = ["BANK_FILE", "SWITCHES", "MATCH_FRAMES", "FADE", "MotionBank", "gaussian_lowpass", "match_features",
-           "knn_inbetween", "texture", "apply_bank", "bank_enabled", "foot_indices"]
+           "knn_inbetween", "texture", "apply_bank", "arrival_gaps", "bank_enabled", "foot_indices"]
 
 BANK_FILE = "bank.npz"
-SWITCHES = ("model.bank_k", "model.bank_weight", "model.texture_sigma", "model.texture_gain")   # inference only
+SWITCHES = ("model.bank_k", "model.bank_weight", "model.texture_sigma", "model.texture_gain",
+            "model.bank_guessed")                                             # inference only
 MATCH_FRAMES = 3          # last context frames whose joint positions are matched
 VELOCITY_WEIGHT = 5.0     # weight of the last context frame's velocity (m / frame) in the match
 FADE = 4                  # texture fade-in / fade-out frames at either end of the gap
@@ -116,6 +119,10 @@ class MotionBank:
         x = np.stack([keyframe_sample(self.takes[starts[i][0]], starts[i][1], length, length - 1,
                                       self.forward_axis)["x"] for i in idx.reshape(-1)]).astype(np.float32)
         return (x * self._scale).reshape(idx.shape + x.shape[1:])
+
+    def max_gap(self, n_input: int) -> int:
+        """The longest gap whose windows (``n_input`` context frames, the gap, the keyframe) the bank holds."""
+        return max(t.shape[1] for t in self.takes) - n_input - 1
 
     @property
     def _scale(self) -> np.ndarray:
@@ -201,6 +208,20 @@ def foot_indices(skeleton) -> tuple:
         return tuple(sorted(set(skeleton.foot_joints()))) if skeleton is not None else ()
     except KeyError:
         return ()
+
+
+def arrival_gaps(frames, keypose, threshold_m: float, pos_scale: float, lo: int = 1) -> np.ndarray:
+    """The gap each rollout takes: the number of frames before the first one at which both characters' mean
+    joint distance to their keyposes is below ``threshold_m`` metres (the rollout's frame count when it never
+    is), at least ``lo``.  With the stop rule's threshold (``model.stop_threshold``) a blend over this gap keeps
+    the frame at which the rollout stops.
+
+    frames (B, 2, F, J, >= 3), keypose (B, 2, J, >= 3) in model units; pos_scale: ``data.pos_scale`` (distances
+    to metres as :func:`~inbetween_jax.evaluation.interaction.keypose_distance_m`).  -> (B,) int."""
+    c = np.asarray(frames, np.float64)[..., :3]
+    d = np.linalg.norm(c - np.asarray(keypose, np.float64)[:, :, None, :, :3], axis=-1).mean(-1).max(1)
+    near = d * (0.01 / pos_scale) < threshold_m                              # (B, F)
+    return np.maximum(np.where(near.any(-1), near.argmax(-1), c.shape[2]), lo).astype(int)
 
 
 def bank_enabled(model_cfg) -> bool:

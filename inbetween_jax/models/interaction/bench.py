@@ -28,6 +28,9 @@ TRAIN_HINT = "inbetween train interaction --preset cpu --run-dir runs/interactio
 # classifier scored the damped rollouts of the shipped model far closer to ground truth than this one does
 # (docs/results/interaction.md, ninth round, `experiments/interaction_score_probe.py --steps 40`).
 CLASSIFIER_STEPS = 400
+# With a guessed gap and ``model.bank_guessed``, the network rolls out at least this many frames to find the
+# gap it takes (twice the longest gap the bench scores L2P on); only the frames asked for are kept.
+ARRIVAL_HORIZON = 100
 
 
 def _has_run(path) -> bool:
@@ -67,31 +70,48 @@ def _model_method(trained, use_refiner=None, gap="true", latent_scale=None, use_
     2 L frames still aims at frame L + 1); ``"guess"`` -- :func:`~inbetween_jax.evaluation.interaction.guess_gap_length`,
     the same guess the guessed-length interpolation baseline uses (flagged models, ``data.tta_guess``, are
     told that it is a guess).  A run with a motion bank (:mod:`.bank`) gets its in-between and texture when told
-    the true gap, unless ``use_bank`` is false; with a guessed gap the network runs alone (the bank's windows
+    the true gap, unless ``use_bank`` is false.  With a guessed gap the network runs alone (the bank's windows
     are warped to arrive at the gap's end, and on the validation take its blend at a guessed gap raised L2P at
-    50 frames from 0.943x to 0.970x the guessed-length interpolation's)."""
+    50 frames from 0.943x to 0.970x the guessed-length interpolation's), unless ``model.bank_guessed``: then the
+    network rolls out at least :data:`ARRIVAL_HORIZON` frames, the bank's in-between is blended in over the gap
+    that rollout takes (the frames before it first meets the stop rule's threshold, :func:`~.bank.arrival_gaps`;
+    no true gap is used; no texture: on the validation take it cost 2 % of L2P at 30 frames with a guessed gap,
+    nothing with the true one) and the frames asked for are kept."""
     import jax
     from inbetween_jax.evaluation.interaction import N_INPUT, guess_gap_length
-    from inbetween_jax.models.interaction.bank import apply_bank, foot_indices
+    from inbetween_jax.models.interaction.bank import apply_bank, arrival_gaps, foot_indices
     from inbetween_jax.models.interaction.model import sample_rollouts
     cfg, fa = trained.cfg, trained.forward_axis.astype(np.float32)
     feet = foot_indices(trained.skeleton)
     if gap not in ("true", "guess"):
         raise ValueError(f"gap must be 'true' or 'guess', not {gap!r}")
-    cache = {}
+    cache, l = {}, cfg.data.n_pred
 
-    def method(b, steps, samples, key):
+    def rolled(steps, samples):
         if (steps, samples) not in cache:
             cache[(steps, samples)] = jax.jit(lambda p, w, kp, R, t, g, k: sample_rollouts(
                 p, w, kp, R, t, k, cfg, fa, steps, samples, threshold=-1.0, use_refiner=use_refiner, gap=g,
                 latent_scale=latent_scale, gap_known=gap == "true")[0])
+        return cache[(steps, samples)]
+
+    def method(b, steps, samples, key):
         B, L = b["x"].shape[0], b["x"].shape[2] - N_INPUT - 1
+        ctx = b["x"][:, :, :N_INPUT]
         g = np.full(B, L, np.float32) if gap == "true" else guess_gap_length(b).astype(np.float32)
-        out = cache[(steps, samples)](trained.params, b["x"][:, :, :N_INPUT], b["keypose"], b["rel_R"], b["rel_t"],
-                                      g, key)
-        if use_bank and trained.bank is not None and gap == "true":
-            return apply_bank(trained.bank, cfg.model, out, b["x"][:, :, :N_INPUT], b["keypose"], g, feet)
-        return np.asarray(out)
+        banked = use_bank and trained.bank is not None and (gap == "true" or cfg.model.bank_guessed)
+        long = max(steps, -(-ARRIVAL_HORIZON // l)) if banked and gap == "guess" else steps
+        out = np.array(rolled(long, samples)(trained.params, ctx, b["keypose"], b["rel_R"], b["rel_t"], g, key))
+        if not banked:
+            return out
+        if gap == "true":
+            return apply_bank(trained.bank, cfg.model, out, ctx, b["keypose"], g, feet)
+        top, blend_only = trained.bank.max_gap(N_INPUT), dataclasses.replace(cfg.model, texture_sigma=0.0)
+        for s in range(len(out)):                                   # each sample over the gap it takes itself
+            arrive = arrival_gaps(out[s], b["keypose"], cfg.model.stop_threshold, cfg.data.pos_scale)
+            ok = np.flatnonzero(arrive <= top)                      # longer than any bank window: network alone
+            out[s:s + 1, ok] = apply_bank(trained.bank, blend_only, out[s:s + 1, ok], ctx[ok], b["keypose"][ok],
+                                          arrive[ok], feet)
+        return out[:, :, :, :steps * l]
     return method
 
 
@@ -202,9 +222,14 @@ def run(source, results_dir: str, run_dir, quick: bool = False) -> dict:
             methods["Ours, its first member alone (same checkpoint)"] = ("interaction",
                                                                          _model_method(member(trained)))
         if cfg.model.tta or cfg.model.residual:
-            guessed = f"Ours, gap length guessed (step {trained.step})"
+            banked = trained.bank is not None and cfg.model.bank_guessed
+            guessed = f"Ours, gap length guessed (step {trained.step}" + (
+                "; the bank's in-between over the rollout's own gap)" if banked else ")")
             methods[guessed] = ("interaction", _model_method(trained, gap="guess"))
             stop_rule[guessed] = methods[guessed][1]
+            if banked:
+                methods["Ours, gap length guessed, the network alone"] = ("interaction", _model_method(
+                    trained, gap="guess", use_bank=False))
         if cfg.model.refiner:
             methods["w/o Motion Refiner (same checkpoint, refiner off)"] = ("interaction",
                                                                           _model_method(trained, False))

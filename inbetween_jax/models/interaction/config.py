@@ -67,7 +67,8 @@ saying which (:func:`.model.tta_flagged`); rollouts told a guessed gap (the benc
 rollout that guesses its own) pass ``gap_known=False``, so the model can learn how wrong the guess tends to be.
 Inference only, off in every preset: the motion bank (:mod:`.bank`; ``model.bank_k`` / ``model.bank_weight``
 blend in the mean of the k nearest training windows, warped onto the gap's ends; ``model.texture_sigma`` /
-``model.texture_gain`` add the nearest window's high-frequency position band), read from ``bank.npz`` in the run
+``model.texture_gain`` add the nearest window's high-frequency position band; ``model.bank_guessed`` blends
+the in-between in with a guessed gap too, over the gap the network's rollout takes), read from ``bank.npz`` in the run
 folder (``experiments/build_bank.py`` writes it and sets the switches).  The
 autoregressive training length (``data.ar_steps``) and the scheduled-sampling curriculum
 (``data.ss_ramp_steps``, ``data.ss_max``) are ``data`` fields: they decide which frames a training sample holds
@@ -140,6 +141,8 @@ class ModelConfig:
     texture_sigma: float = 0.0     # inference: add the nearest bank window's position band above a Gaussian
                                    # low-pass of this many frames (0: off)
     texture_gain: float = 1.0      # inference: the texture's gain
+    bank_guessed: bool = False     # inference: with a guessed gap, apply the bank over the gap the network's
+                                   # own rollout takes (:func:`.bank.arrival_gaps`), not the guess (blend only)
 
 
 @dataclasses.dataclass(frozen=True)
