@@ -26,8 +26,9 @@ The folder must be shared by all processes (one file system).  Restored arrays l
 first local device; the driver then replicates them over the global mesh.
 
 Damaged checkpoints (an empty step folder, zero-byte files, a missing or unreadable metadata file, a
-folder without checkpoints) raise :class:`CheckpointError`, one line naming the folder and the problem;
-orbax's own absl log lines are silenced during these calls.
+folder without checkpoints, array data orbax cannot read) raise :class:`CheckpointError`, one line naming the
+folder and the problem; orbax's own absl log lines are silenced during these calls, and the late tracebacks of
+reads still in flight when a restore failed are dropped (:func:`_drop_late_read_errors`).
 """
 
 from __future__ import annotations
@@ -38,6 +39,8 @@ import json
 import logging
 import os
 import shutil
+import sys
+import traceback
 from typing import Any, Iterator
 
 import jax
@@ -60,12 +63,14 @@ class CheckpointError(ValueError):
 def _quiet() -> Iterator[None]:
     """Silence orbax's absl log lines (and asyncio's "exception never retrieved") for the duration.
 
-    Only these two loggers' levels change, and they are restored on exit.
+    Only these two loggers' levels change, and they are restored on exit; the late reports of a failed read are
+    dropped for good (:func:`_drop_late_read_errors`).
     """
     loggers = [logging.getLogger(name) for name in ("absl", "asyncio")]
     levels = [lg.level for lg in loggers]
     for lg in loggers:
         lg.setLevel(logging.CRITICAL + 1)
+    _drop_late_read_errors()
     try:
         yield
     except BaseException:
@@ -74,6 +79,46 @@ def _quiet() -> Iterator[None]:
     finally:
         for lg, level in zip(loggers, levels):
             lg.setLevel(level)
+
+
+def _is_closed_loop_report(unraisable) -> bool:
+    """An unraisable ``RuntimeError('Event loop is closed')``: what tensorstore reads still in flight report when
+    they finish after orbax's event loop closed on a failed restore."""
+    exc = unraisable.exc_value
+    return isinstance(exc, RuntimeError) and str(exc) == "Event loop is closed"
+
+
+_NEVER_RETRIEVED = ("Task exception was never retrieved", "Future exception was never retrieved")   # asyncio's
+
+
+class _LateFutureFilter(logging.Filter):
+    """Drops asyncio's "Task / Future exception was never retrieved" records of orbax's or tensorstore's reads
+    (the same late reads' errors); every other record passes."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if not str(record.msg).startswith(_NEVER_RETRIEVED) or not record.exc_info:
+            return True
+        exc = record.exc_info[1]
+        where = str(exc) + "".join(traceback.format_tb(exc.__traceback__)) if exc is not None else ""
+        return "orbax" not in where and "tensorstore" not in where
+
+
+def _drop_late_read_errors() -> None:
+    """When an orbax read fails, the reads still in flight finish on tensorstore's threads after orbax closed its
+    event loop -- during orbax's own teardown or after the one-line error was raised -- and each reports a
+    traceback (an unraisable "Event loop is closed", asyncio's "exception was never retrieved").  Called before
+    every orbax call: from then on those two reports, and only those, are dropped (the current
+    ``sys.unraisablehook`` is wrapped unless it already is; asyncio's logger gets a filter once)."""
+    current = sys.unraisablehook
+    if not getattr(current, "drops_closed_loop_reports", False):
+        def hook(unraisable):
+            if not _is_closed_loop_report(unraisable):
+                current(unraisable)
+        hook.drops_closed_loop_reports = True
+        sys.unraisablehook = hook
+    asyncio_log = logging.getLogger("asyncio")
+    if not any(isinstance(f, _LateFutureFilter) for f in asyncio_log.filters):
+        asyncio_log.addFilter(_LateFutureFilter())
 
 
 def _one_line(err: BaseException, limit: int = 300) -> str:
