@@ -57,16 +57,18 @@ def main(argv=None) -> int:
         trained = load(load_run(args.run_dir))
         d = trained.cfg.data
         pairs = load_pairs(args.source, d.pair_distance)
-        bank = MotionBank.from_pairs(split_pairs(pairs, "fit", d.split), d.pos_scale)
+        fit, judged = split_pairs(pairs, "fit", d.split), split_pairs(pairs, args.split, d.split)
+        bank = MotionBank.from_pairs(fit, d.pos_scale)
         variants = [("the network alone", dataclasses.replace(trained, bank=None))]
         variants += [(t, dataclasses.replace(trained, bank=bank, cfg=dataclasses.replace(
             trained.cfg, model=parse_try(t, trained.cfg.model)))) for t in args.tries]
     except (UserError, ValueError, OSError) as e:   # RunError is a ValueError
         print(f"interaction_bank_probe: {e}", file=sys.stderr)
         return 2
-    windows = proto.table1_windows(split_pairs(pairs, args.split, d.split), d.pos_scale, 10 ** 6, L2P_LENGTHS)
+    windows = proto.table1_windows(judged, d.pos_scale, 10 ** 6, L2P_LENGTHS)
+    train = split_pairs(pairs, "train", d.split)
     # L2P scale as checkpoint selection (validation: the fit takes) and the bench (test: the training takes) set it
-    stats = proto.l2p_stats(split_pairs(pairs, "fit" if args.split == "val" else "train", d.split), d.pos_scale)
+    stats = proto.l2p_stats(fit if args.split == "val" else train, d.pos_scale)
     row = lambda method: windows_l2p(method, windows, stats, d.n_pred, L2P_LENGTHS)  # noqa: E731
     interp, guessed = row(proto.interpolation_method), row(proto.guessed_interpolation_method)
     score = None
@@ -74,10 +76,10 @@ def main(argv=None) -> int:
         import jax
 
         from interaction_score_probe import score_windows
-        gdef, params, _ = proto.train_classifier(split_pairs(pairs, "train", d.split), pairs[0].feats.shape[2],
+        gdef, params, _ = proto.train_classifier(train, pairs[0].feats.shape[2],
                                                  trained.cfg.model.pjd_joints, steps=CLASSIFIER_STEPS,
                                                  pos_scale=d.pos_scale)
-        score_win = proto.table1_windows(split_pairs(pairs, args.split, d.split), d.pos_scale, 128, SCORE_LENGTHS)
+        score_win = proto.table1_windows(judged, d.pos_scale, 128, SCORE_LENGTHS)
         truth = np.mean(score_windows(gdef, params, score_win, lambda b, L: b["x"][:, :, proto.N_INPUT:][:, :, :L],
                                       d.pos_scale)[0])
 

@@ -216,12 +216,13 @@ def arrival_gaps(frames, keypose, threshold_m: float, pos_scale: float, lo: int 
     is), at least ``lo``.  With the stop rule's threshold (``model.stop_threshold``) a blend over this gap keeps
     the frame at which the rollout stops.
 
-    frames (B, 2, F, J, >= 3), keypose (B, 2, J, >= 3) in model units; pos_scale: ``data.pos_scale`` (distances
-    to metres as :func:`~inbetween_jax.evaluation.interaction.keypose_distance_m`).  -> (B,) int."""
-    c = np.asarray(frames, np.float64)[..., :3]
-    d = np.linalg.norm(c - np.asarray(keypose, np.float64)[:, :, None, :, :3], axis=-1).mean(-1).max(1)
-    near = d * (0.01 / pos_scale) < threshold_m                              # (B, F)
-    return np.maximum(np.where(near.any(-1), near.argmax(-1), c.shape[2]), lo).astype(int)
+    frames (B, 2, F, J, >= 3), keypose (B, 2, J, >= 3) in model units; pos_scale: ``data.pos_scale``; distances
+    as the evaluation's stop-rule statistics measure them
+    (:func:`~inbetween_jax.evaluation.interaction.keypose_distance_m`).  -> (B,) int."""
+    from inbetween_jax.evaluation.interaction import keypose_distance_m
+    frames = np.asarray(frames, np.float64)
+    near = keypose_distance_m(frames, np.asarray(keypose, np.float64), pos_scale) < threshold_m     # (B, F)
+    return np.maximum(np.where(near.any(-1), near.argmax(-1), frames.shape[2]), lo).astype(int)
 
 
 def bank_enabled(model_cfg) -> bool:
