@@ -7,7 +7,7 @@ ARGS   ?=
 RESULTS ?= results
 PAIRS  ?= ../shared/data/cmu_pairs
 
-.PHONY: help install test test-all bench bench-quick train lint-dupes clean-cache embedded-data demo infill preview
+.PHONY: help install install-bench test test-all bench bench-quick train lint-dupes clean-cache embedded-data demo infill preview
 
 help:
 	@echo "make install              create .venv and install the package with test extras"
@@ -15,7 +15,8 @@ help:
 	@echo "make test-all             include tests marked slow"
 	@echo "make train MODEL=scvae    inbetween train MODEL ARGS (ARGS='--preset tiny train.num_steps=20 ...')"
 	@echo "make bench                inbetween bench: baseline + model tables into $(RESULTS)/, then the speed section"
-	@echo "                          (NO_SPEED=1 skips it); the interaction model also on the real pairs in"
+	@echo "                          (inbetween speed; installs the bench extra, torch, first; NO_SPEED=1 skips"
+	@echo "                          both); the interaction model also on the real pairs in"
 	@echo "                          \$$(PAIRS) (default ../shared/data/cmu_pairs) -> $(RESULTS)/pairs/"
 	@echo ".venv/bin/inbetween --help  train / bench / infill / preview / demo"
 	@echo "make demo                 inbetween demo: tiny runs of every model + infill with previews -> results/demo/"
@@ -32,6 +33,13 @@ $(VENV)/.installed: pyproject.toml | $(PY)
 
 install: $(VENV)/.installed
 
+# the optional `bench` extra (torch, for the PyTorch columns of the speed section); `make bench` only, not `make test`
+$(VENV)/.bench-installed: pyproject.toml | $(VENV)/.installed
+	$(PY) -m pip install --quiet -e ".[bench]"
+	touch $@
+
+install-bench: $(VENV)/.bench-installed
+
 test: install
 	$(PY) -m pytest -q
 
@@ -41,12 +49,12 @@ test-all: install
 train: install
 	$(VENV)/bin/inbetween train $(MODEL) $(ARGS)
 
-bench: install
+bench: install $(if $(NO_SPEED),,install-bench)
 	$(VENV)/bin/inbetween bench --results $(RESULTS) $(ARGS)
 	@if [ -d "$(PAIRS)" ]; then $(VENV)/bin/inbetween bench --source $(PAIRS) --models interaction --quick \
 	    --results $(RESULTS)/pairs; else echo "no two-person capture in $(PAIRS): skipping the real-pair bench"; fi
 ifeq ($(NO_SPEED),)
-	$(PY) experiments/bench_speed.py --results $(RESULTS)
+	$(VENV)/bin/inbetween speed --results $(RESULTS) --torch-ref experiments/torch_scvae.py
 endif
 
 demo: install

@@ -13,11 +13,6 @@ rollouts (one sample each, own keys); ``--members`` adds a row for every member 
 import argparse
 import sys
 
-import numpy as np
-
-from inbetween_jax.errors import UserError
-from inbetween_jax.train.run import load_run
-
 LENGTHS = (30, 50)
 
 
@@ -28,11 +23,14 @@ def main(argv=None) -> int:
     p.add_argument("--ensemble", action="store_true", help="also score the mean of the runs' rollouts")
     p.add_argument("--members", action="store_true", help="also score every member of an ensemble run alone")
     args = p.parse_args(argv)
+    from inbetween_jax.errors import UserError
     from inbetween_jax.evaluation import interaction as proto
     from inbetween_jax.models.interaction.bench import _model_method, member, windows_l2p
     from inbetween_jax.models.interaction.config import DataConfig
     from inbetween_jax.models.interaction.data import load_pairs, split_pairs
     from inbetween_jax.models.interaction.infer import load
+    from inbetween_jax.models.interaction.probes import fmt, mean_rollout, ratios
+    from inbetween_jax.train.run import load_run
     d = DataConfig()
     try:
         pairs = load_pairs(args.source, d.pair_distance)
@@ -44,7 +42,6 @@ def main(argv=None) -> int:
     stats = proto.l2p_stats(train, d.pos_scale)
     windows = proto.table1_windows(test, d.pos_scale, 10 ** 6, LENGTHS)
     row = lambda method: windows_l2p(method, windows, stats, d.n_pred, LENGTHS)  # noqa: E731
-    fmt = lambda v: " / ".join(f"{x:.3f}" for x in v)  # noqa: E731
     interp, guessed = row(proto.interpolation_method), row(proto.guessed_interpolation_method)
     print(f"windows: {' / '.join(str(len(windows[L]['x'])) for L in LENGTHS)} at {' / '.join(map(str, LENGTHS))} "
           f"frames; interpolation, true gap: {fmt(interp)}; guessed gap: {fmt(guessed)}")
@@ -60,19 +57,9 @@ def main(argv=None) -> int:
                      for i, m in enumerate(alone)]
     for name, true_method, guess_method in rows:
         true_gap, guess = row(true_method), row(guess_method)
-        print(f"{name}: true gap {fmt(true_gap)} ({fmt([a / b for a, b in zip(true_gap, interp)])}x); "
-              f"guessed gap {fmt(guess)} ({fmt([a / b for a, b in zip(guess, guessed)])}x)")
+        print(f"{name}: true gap {fmt(true_gap)} ({ratios(true_gap, interp, 3)}x); "
+              f"guessed gap {fmt(guess)} ({ratios(guess, guessed, 3)}x)")
     return 0
-
-
-def mean_rollout(methods):
-    """A bench method averaging ``methods``' rollouts (one sample each, drawn with keys split from the call's)."""
-    import jax
-
-    def method(b, steps, samples, key):
-        keys = jax.random.split(key, len(methods))
-        return np.mean([np.asarray(m(b, steps, samples, k)) for m, k in zip(methods, keys)], axis=0)
-    return method
 
 
 if __name__ == "__main__":

@@ -17,26 +17,7 @@ import dataclasses
 import sys
 import time
 
-import numpy as np
-
-from inbetween_jax.errors import UserError
-from inbetween_jax.train.run import load_run
-
-L2P_LENGTHS, SCORE_LENGTHS = (30, 50), (40, 60, 80)
-
-
-def parse_try(text: str, model_cfg):
-    """``"model.bank_k=8,model.texture_gain=1.5"`` -> ``model_cfg`` with those fields replaced (typed as theirs)."""
-    from inbetween_jax.models.interaction.bank import SWITCHES
-    changes = {}
-    for item in filter(None, text.split(",")):
-        key, sep, value = item.partition("=")
-        if not sep or key not in SWITCHES:
-            raise UserError(f"--try {item}: not KEY=VALUE of a bank switch (choose {', '.join(SWITCHES)})")
-        field = key.split(".", 1)[1]
-        kind = type(getattr(model_cfg, field))
-        changes[field] = value.lower() in ("1", "true", "yes") if kind is bool else kind(value)
-    return dataclasses.replace(model_cfg, **changes)
+L2P_LENGTHS = (30, 50)
 
 
 def main(argv=None) -> int:
@@ -47,11 +28,14 @@ def main(argv=None) -> int:
     p.add_argument("--score", action="store_true", help="also the interaction score (trains the classifier)")
     p.add_argument("--try", dest="tries", action="append", default=[], metavar="KEY=VALUE,...")
     args = p.parse_args(argv)
+    from inbetween_jax.errors import UserError
     from inbetween_jax.evaluation import interaction as proto
     from inbetween_jax.models.interaction.bank import MotionBank
     from inbetween_jax.models.interaction.bench import CLASSIFIER_STEPS, _model_method, windows_l2p
     from inbetween_jax.models.interaction.data import load_pairs, split_pairs
     from inbetween_jax.models.interaction.infer import load
+    from inbetween_jax.models.interaction.probes import classifier_scorer, fmt, parse_try, ratios
+    from inbetween_jax.train.run import load_run
     t0 = time.time()
     try:
         trained = load(load_run(args.run_dir))
@@ -71,31 +55,17 @@ def main(argv=None) -> int:
     stats = proto.l2p_stats(fit if args.split == "val" else train, d.pos_scale)
     row = lambda method: windows_l2p(method, windows, stats, d.n_pred, L2P_LENGTHS)  # noqa: E731
     interp, guessed = row(proto.interpolation_method), row(proto.guessed_interpolation_method)
-    score = None
-    if args.score:
-        import jax
-
-        from interaction_score_probe import score_windows
-        gdef, params, _ = proto.train_classifier(train, pairs[0].feats.shape[2],
-                                                 trained.cfg.model.pjd_joints, steps=CLASSIFIER_STEPS,
-                                                 pos_scale=d.pos_scale)
-        score_win = proto.table1_windows(judged, d.pos_scale, 128, SCORE_LENGTHS)
-        truth = np.mean(score_windows(gdef, params, score_win, lambda b, L: b["x"][:, :, proto.N_INPUT:][:, :, :L],
-                                      d.pos_scale)[0])
-
-        def score(method):
-            make = lambda b, L: method(b, -(-L // d.n_pred), 1, jax.random.key(L))[0][:, :, :L]  # noqa: E731
-            return np.mean(score_windows(gdef, params, score_win, make, d.pos_scale)[0]) / truth
+    score = (classifier_scorer(train, judged, trained.cfg.model.pjd_joints, d, CLASSIFIER_STEPS) if args.score
+             else None)
     print(f"{args.split} windows {' / '.join(str(len(windows[L]['x'])) for L in L2P_LENGTHS)} at "
-          f"{' / '.join(map(str, L2P_LENGTHS))} frames; interpolation {' / '.join(f'{x:.3f}' for x in interp)} "
-          f"(true gap), {' / '.join(f'{x:.3f}' for x in guessed)} (guessed)")
+          f"{' / '.join(map(str, L2P_LENGTHS))} frames; interpolation {fmt(interp)} (true gap), "
+          f"{fmt(guessed)} (guessed)")
     print("| switches | L2P 30 / 50, true gap (x interpolation) | gap guessed (x guessed-length interpolation) |"
           + (" score x ground truth |" if score else ""))
     print("|---|---|---|" + ("---|" if score else ""))
     for name, t in variants:
         true_gap, guess = row(_model_method(t)), row(_model_method(t, gap="guess"))
-        ratio = lambda v, ref: " / ".join(f"{a / b:.4f}" for a, b in zip(v, ref))  # noqa: E731
-        print(f"| {name} | {ratio(true_gap, interp)} | {ratio(guess, guessed)} |"
+        print(f"| {name} | {ratios(true_gap, interp)} | {ratios(guess, guessed)} |"
               + (f" {score(_model_method(t)):.2f} |" if score else ""), flush=True)
     print(f"{time.time() - t0:.0f} s")
     return 0

@@ -18,17 +18,7 @@ import time
 
 import numpy as np
 
-from inbetween_jax.errors import UserError
-from inbetween_jax.models.interaction.bank import gaussian_lowpass
-from inbetween_jax.train.run import load_run
-
 LENGTHS = (40, 60, 80)
-
-
-def run_and_step(arg: str):
-    """``RUN_DIR@STEP`` -> (RUN_DIR, STEP); ``RUN_DIR`` -> (RUN_DIR, None): the validation-selected step."""
-    head, sep, tail = arg.rpartition("@")
-    return (head, int(tail)) if sep and tail.isdigit() else (arg, None)
 
 
 def main(argv=None) -> int:
@@ -37,14 +27,14 @@ def main(argv=None) -> int:
     p.add_argument("--source", default="../shared/data/cmu_pairs")
     p.add_argument("--steps", type=int, default=None, help="classifier steps (default: the bench's)")
     args = p.parse_args(argv)
-    import jax
-
+    from inbetween_jax.errors import UserError
     from inbetween_jax.evaluation import interaction as proto
-    from inbetween_jax.evaluation.interaction import N_INPUT
     from inbetween_jax.models.interaction.bench import CLASSIFIER_STEPS, _model_method, member, windows_l2p
     from inbetween_jax.models.interaction.config import DataConfig, get_config
     from inbetween_jax.models.interaction.data import load_pairs, split_pairs
     from inbetween_jax.models.interaction.infer import load
+    from inbetween_jax.models.interaction.probes import fmt, rollout, run_and_step, score_windows, truth_variants
+    from inbetween_jax.train.run import load_run
     t0, d = time.time(), DataConfig()
     try:
         pairs = load_pairs(args.source, d.pair_distance)
@@ -60,73 +50,29 @@ def main(argv=None) -> int:
     windows = proto.table1_windows(test, d.pos_scale, 128, LENGTHS)
     print(f"classifier: {steps} steps, final batch accuracy {acc:.2f}; windows "
           f"{' / '.join(str(len(windows[L]['x'])) for L in LENGTHS)} at {' / '.join(map(str, LENGTHS))} frames")
-
-    def gt(b, L):
-        return b["x"][:, :, N_INPUT:N_INPUT + L]
-
-    def smoothed(sigma):
-        return lambda b, L: gaussian_lowpass(b["x"][:, :, :N_INPUT + L + 1], sigma, 2)[:, :, N_INPUT:N_INPUT + L]
-
-    def interp(b, L):
-        return proto.interpolation_method(b, -(-L // 10), 1, None)[0][:, :, :L]
-
-    def blend(w):
-        return lambda b, L: w * gt(b, L) + (1 - w) * interp(b, L)
-
-    def hold(b, L):
-        return np.repeat(b["x"][:, :, N_INPUT - 1:N_INPUT], L, 2)
-
-    def model(method):
-        return lambda b, L: method(b, -(-L // 10), 1, jax.random.key(L))[0][:, :, :L]
-
-    rows = {"ground truth": gt, "ground truth smoothed, sigma 1 frame": smoothed(1.0),
-            "ground truth smoothed, sigma 2 frames": smoothed(2.0), "ground truth smoothed, sigma 4 frames":
-            smoothed(4.0), "0.75 ground truth + 0.25 interpolation": blend(0.75),
-            "0.5 ground truth + 0.5 interpolation": blend(0.5), "interpolation (true gap)": interp,
-            "hold last frame": hold}
+    rows = truth_variants()
     for name, t in zip(args.run_dirs, trained):
-        rows[f"{name} (step {t.step})"] = model(_model_method(t))
+        rows[f"{name} (step {t.step})"] = rollout(_model_method(t))
         if t.bank is not None:
-            rows[f"{name}, network alone (motion bank off)"] = model(_model_method(t, use_bank=False))
+            rows[f"{name}, network alone (motion bank off)"] = rollout(_model_method(t, use_bank=False))
         if t.cfg.model.members > 1:
-            rows[f"{name}, first member alone"] = model(_model_method(member(t)))
-    print("| method | score 40 / 60 / 80 | x ground truth | speed (cm/frame) | speed std over time |")
-    print("|---|---|---|---|---|")
+            rows[f"{name}, first member alone"] = rollout(_model_method(member(t)))
+    print("| method | score 40 / 60 / 80 | x ground truth | speed (cm/frame) | speed std over time |\n"
+          "|---|---|---|---|---|")
     ref = None
     for name, make in rows.items():
         score, speed, spread = score_windows(gdef, params, windows, make, d.pos_scale)
         ref = np.mean(score) if ref is None else ref
-        print(f"| {name} | {' / '.join(f'{s:.2f}' for s in score)} | {np.mean(score) / ref:.2f} | "
-              f"{speed:.2f} | {spread:.2f} |", flush=True)
+        print(f"| {name} | {fmt(score, 2)} | {np.mean(score) / ref:.2f} | {speed:.2f} | {spread:.2f} |", flush=True)
     if trained:
         stats = proto.l2p_stats(train, d.pos_scale)
         l2p_windows = proto.table1_windows(test, d.pos_scale, 10 ** 6, (30, 50))
         for name, t in zip(args.run_dirs, trained):
             for scale in (0.0, 1.0):
                 l2p = windows_l2p(_model_method(t, latent_scale=scale), l2p_windows, stats, d.n_pred, (30, 50))
-                print(f"{name}: latent scale {scale:g}, L2P 30 / 50 (every window) "
-                      f"{' / '.join(f'{x:.3f}' for x in l2p)}")
+                print(f"{name}: latent scale {scale:g}, L2P 30 / 50 (every window) {fmt(l2p)}")
     print(f"{time.time() - t0:.0f} s")
     return 0
-
-
-def score_windows(gdef, params, windows, make, pos_scale):
-    """The classifier's mean score on ``windows[L]`` for each L of the in-between frames ``make(b, L)``
-    (B, 2, L, J, 9) key space, each after its last context frame, in the common space; with the mean joint speed
-    and its standard deviation over time (cm per frame).  -> ([score per L], speed, speed std)."""
-    import jax.numpy as jnp
-
-    from inbetween_jax.evaluation.interaction import N_INPUT, classify_windows, to_common_space
-    score, speed, spread = [], [], []
-    for L, b in windows.items():
-        prev = np.asarray(to_common_space(jnp.asarray(b["x"][:, :, N_INPUT - 1:N_INPUT]), b["rel_R"], b["rel_t"]))
-        pred = np.asarray(to_common_space(jnp.asarray(np.asarray(make(b, L), np.float32)), b["rel_R"], b["rel_t"]))
-        clip = np.concatenate([prev, pred], 2)                                           # (B, 2, L + 1, J, 9)
-        score.append(float(np.mean(classify_windows(gdef, params, jnp.asarray(clip))[0])))
-        v = np.linalg.norm(np.diff(clip[..., :3], axis=2), axis=-1) / pos_scale       # (B, 2, L, J) cm / frame
-        speed.append(v.mean())
-        spread.append(v.std(2).mean())
-    return score, float(np.mean(speed)), float(np.mean(spread))
 
 
 if __name__ == "__main__":

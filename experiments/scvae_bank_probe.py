@@ -3,7 +3,7 @@
     python experiments/scvae_bank_probe.py SOURCE [--bank fit] [--windows val] [--k 16,32,64] [--tau 0,0.5]
         [--weights 1,0.75] [--run RUN_DIR [--samples 2]] [--mirror]
 
-Builds a :class:`~inbetween_jax.models.scvae.bank.TransitionBank` from the ``--bank`` split of SOURCE (``fit``:
+Builds the transition bank of the ``--bank`` split of SOURCE (:func:`inbetween_jax.banks.scvae_bank`; ``fit``:
 the training files without the validation ones; ``train``: all training files) and scores, on the ``--windows``
 split (``val``: 65-frame validation windows at offset 20; ``benchmark``: the test windows), Slerp and the bank's
 transitions mixed with Slerp's by each weight (1: the bank's alone), for every k and tau, in the S-CVAE paper's
@@ -33,16 +33,14 @@ def main(argv=None) -> int:
     ap.add_argument("--samples", type=int, default=2)
     ap.add_argument("--mirror", action="store_true", help="the bank holds each motion's mirror image too")
     a = ap.parse_args(argv)
+    from inbetween_jax.banks import scvae_bank
     from inbetween_jax.baselines import interpolate_transition
-    from inbetween_jax.data import l2p_stats, load_dataset, load_motions, resolve_source
-    from inbetween_jax.data.datasets import window_settings
+    from inbetween_jax.data import l2p_stats, load_dataset, resolve_source
     from inbetween_jax.evaluation import transition_metrics
-    from inbetween_jax.models.scvae.bank import TransitionBank, blend, knn_transition
+    from inbetween_jax.models.scvae.bank import blend, knn_transition
     t0 = time.time()
     source = resolve_source(a.source)
-    motions = load_motions(source, a.bank)
-    fa = window_settings(source, "train")["forward_axis"] or motions[0].skeleton.forward_axis()
-    bank = TransitionBank.from_motions(motions, np.asarray(fa, np.float64), mirror=a.mirror)
+    bank = scvae_bank(None, source, a.bank, a.mirror)         # what experiments/build_bank.py writes
     windows = (load_dataset(source, "benchmark") if a.windows == "benchmark"
                else load_dataset(source, "val", window=65, offset=20))
     x_mean, x_std = l2p_stats(load_dataset(source, "train").global_pose()[1])

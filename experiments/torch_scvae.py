@@ -1,10 +1,11 @@
 """PyTorch-eager reference of one S-CVAE training step, for a JAX-vs-PyTorch speed benchmark on one CPU.
 
 Benchmark only: ``torch`` (``pip install .[bench]``, the torch 2.13.0 CPU build) is optional; this module
-imports without it and :func:`available` says whether it can run.  Plain eager mode: no ``torch.compile``,
-no TorchScript, default threads: ``torch.get_num_threads()`` is 2 (one per core) on the 2-core machine used
-for the timings.  With other processes busy on those cores, 2 threads ran the paper-size step 4-8x slower
-than 1 thread (``OMP_NUM_THREADS=1``): time on an idle CPU, or report the thread count with the numbers.
+imports without it and :func:`available` says whether it can run.  Eager mode (``make_step(...,
+compile_backend=...)``: the generator loss under ``torch.compile``), no TorchScript, default threads:
+``torch.get_num_threads()`` is 2 (one per core) on the 2-core machine used for the timings.  With other
+processes busy on those cores, 2 threads ran the paper-size step 4-8x slower than 1 thread
+(``OMP_NUM_THREADS=1``): time on an idle CPU, or report the thread count with the numbers.
 
 Mirrored with the same matrix shapes, step count, batch and matmuls per step: ``models.scvae.model.rollout``
 (forward and backward generators with separate parameters alternating over ``max_length // 2 + K`` steps,
@@ -352,13 +353,15 @@ class _Model:
 
 # ----------------------------------------------------------------------------- the train step
 def make_step(cfg, num_joints: int, parents, stats: dict, batch: dict, length: int,
-              seed: int = 0) -> Callable[[], float]:
+              seed: int = 0, compile_backend: str | None = None) -> Callable[[], float]:
     """One-training-step closure on a fixed batch.
 
     cfg: ``inbetween_jax.models.scvae.config.Config``; stats: ``features.compute_stats`` (v_std (3,), off_std (3,),
     pos_unit (), offsets (J, 3)); batch: ``models.scvae.train.make_batch`` output (q (B, T1, J, 4), r (B, T1, 3),
     c (B, T1, 4), phase_f / phase_b (B, T1, 4), p (B, T1, J, 3)); length: L = frames between keyframes
     (T1 - 1 = max_length fixes the step count).  The closure returns the generator loss (before the update).
+    compile_backend: None (eager) or a ``torch.compile`` backend ("inductor", "aot_eager") for the generator
+    loss (its forward and backward; compiled in the first call); the optimisers and the discriminator stay eager.
     """
     m, lc, tc = cfg.model, cfg.loss, cfg.train
     if not m.bidirectional:
@@ -405,8 +408,10 @@ def make_step(cfg, num_joints: int, parents, stats: dict, batch: dict, length: i
             loss = loss + lc.alpha_g * model.lsgan(frozen, model.disc_feat(out), None, length)
         return loss, out
 
+    gen_loss = generator_loss if compile_backend is None else torch.compile(generator_loss, backend=compile_backend)
+
     def step() -> float:
-        loss, out = generator_loss()
+        loss, out = gen_loss()
         opt_g.zero_grad(set_to_none=True)
         loss.backward()
         torch.nn.utils.clip_grad_norm_(gen_leaves, tc.grad_clip)

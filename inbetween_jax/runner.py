@@ -44,7 +44,7 @@ def train_model(model: str, preset: str | None = None, overrides: Sequence[str] 
     """
     from inbetween_jax.data import resolve_source
     from inbetween_jax.train import config_to_dict, run_training
-    from inbetween_jax.train.run import record_training, write_run
+    from inbetween_jax.train.run import _checkpoint_steps, record_training, write_run
     spec = get_spec(model)
     preset = preset or spec.default_preset
     cfg = build_config(model, preset, overrides)
@@ -67,14 +67,19 @@ def train_model(model: str, preset: str | None = None, overrides: Sequence[str] 
     if training.num_steps == 0:
         save_initial_state(run_dir, training.init_fn, tc.seed)
         return run_dir, []
+    done = max(_checkpoint_steps(os.path.join(run_dir, "checkpoints")), default=0)
+    complete = done >= training.num_steps            # a finished run run again: say so instead of a full bar
+    if complete and log:
+        log(f"{model}: training already complete (step {done} of {training.num_steps}) in {run_dir}")
     t0 = time.time()
     _, logged = run_training(training.init_fn, training.step_fn, training.batch_fn, cfg, run_dir,
-                             training.num_steps, tc.log_every, tc.ckpt_every, tc.seed, progress=progress, mesh=mesh,
-                             max_to_keep=tc.keep_checkpoints or None)
+                             training.num_steps, tc.log_every, tc.ckpt_every, tc.seed,
+                             progress=progress and not complete, mesh=mesh, max_to_keep=tc.keep_checkpoints or None)
     wall = time.time() - t0
     if not primary:
         return run_dir, logged
-    record_training(run_dir, training.num_steps, wall)
+    if not complete:
+        record_training(run_dir, training.num_steps, wall)
     bench = spec.module("bench")
     from inbetween_jax.data.datasets import is_fit_split
     if is_fit_split(tc.split) and hasattr(bench, "val_score"):

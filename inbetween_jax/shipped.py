@@ -10,7 +10,7 @@ unchanged::
     run = shipped_run("scvae")                       # None when no weights ship for scvae
     trained = REGISTRY["scvae"].module("infer").load(run)
 
-Writing them: ``python experiments/ship_weights.py RUN_DIR [--step N] [--dtype float16|float32]``
+Writing them: ``inbetween ship-weights RUN_DIR [--step N] [--dtype float16|float32]``
 (:func:`export_run`).  ``$INBETWEEN_WEIGHTS_DIR`` replaces the package folder (tests, private weights).
 """
 from __future__ import annotations
@@ -30,8 +30,8 @@ ENV = "INBETWEEN_WEIGHTS_DIR"
 # Switches that only change inference (the trained parameters are the same either way): ``export_run(inference=)``.
 INFERENCE_SWITCHES = {"interaction": ("model.refiner", "model.latent_scale", "model.bank_k", "model.bank_weight",
                                       "model.texture_sigma", "model.texture_gain", "model.bank_guessed"),
-                      "scvae": ("model.search", "model.bank_k", "model.bank_weight", "model.bank_tau"),
-                      "cae": ("model.mirror_average",)}
+                      "scvae": ("model.search", "model.bank_k", "model.bank_weight", "model.bank_tau", "model.ood_gate"),
+                      "cae": ("model.mirror_average", "model.ood_gate", "model.root_bound")}
 # Per model: the key-path prefixes of the train state that ``infer.load`` / inference use.
 KEEP = {"scvae": ("params", "stats"),                # generators + normalisation (disc, opt_g, opt_d dropped)
         "cae": ("params",),                          # opt_state dropped
@@ -145,6 +145,11 @@ def export_run(run_dir: str, step: int | None = None, out_dir: str | None = None
         "data_source": run.data.get("source"), "steps_trained": trained, "inference": list(inference),
         "parameters": int(sum(a.size for a in arrays.values())),
         "exported": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
+    for name in ("ood.npz", "ood_calibration.json"):   # the out-of-distribution gate (models/ood.py), if calibrated
+        if os.path.exists(os.path.join(run_dir, name)):
+            import shutil
+            shutil.copyfile(os.path.join(run_dir, name), os.path.join(out_dir, name + ".tmp"))
+            os.replace(os.path.join(out_dir, name + ".tmp"), os.path.join(out_dir, name))
     tmp = os.path.join(out_dir, WEIGHTS_FILE + ".tmp.npz")
     np.savez_compressed(tmp, **arrays)
     os.replace(tmp, os.path.join(out_dir, WEIGHTS_FILE))

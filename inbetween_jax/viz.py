@@ -110,6 +110,15 @@ def _bones(parents) -> list:
     return [(p, j) for j, p in enumerate(parents) if p >= 0]
 
 
+def _segments(pose: np.ndarray, parents, r: float = 4.0) -> np.ndarray:
+    """(B, 2, 2) line segments of a 2-D pose (J, 2): its bones, and a cross of half-size ``r`` (cm) on every
+    joint without a bone (a one-joint rig), so that it shows."""
+    segs = pose[np.array(_bones(parents), int).reshape(-1, 2)]
+    lone = [j for j, p in enumerate(parents) if p < 0 and j not in parents]
+    cross = np.array([[[-r, 0.0], [r, 0.0]], [[0.0, -r], [0.0, r]]])
+    return np.concatenate([segs] + [pose[j] + cross for j in lone])
+
+
 # ---------------------------------------------------------------------------------- public API
 def contact_sheet(positions, parents, path, every: int = 5, keyframes: Sequence[int] = (),
                   title: Optional[str] = None, generated=None, *, height: float = 2.5, dpi: int = 100,
@@ -148,7 +157,6 @@ def contact_sheet(positions, parents, path, every: int = 5, keyframes: Sequence[
     xmin, xmax = xy[..., 0].min() - 0.1 * width, xy[..., 0].max() + 0.1 * width
     ymin, ymax = min(0.0, xy[..., 1].min()) - 16.0, xy[..., 1].max() + 10.0  # room for frame numbers
     fig_w = min(max(height * (xmax - xmin) / (ymax - ymin), 2.0), 60.0)
-    bones = np.array(_bones(par)).reshape(-1, 2)                # (B, 2) parent, child
     total = len(frames) + 1
     style = {"lines.antialiased": False, "text.antialiased": False, "patch.antialiased": False}
     with plt.rc_context(style):
@@ -163,7 +171,7 @@ def contact_sheet(positions, parents, path, every: int = 5, keyframes: Sequence[
             for f, (frame, pose) in enumerate(zip(frames, xy)):
                 is_key = frame in keys
                 color = KEY_COLOR if is_key else GENERATED_COLOR if gen[frame] else OTHER_COLOR
-                ax.add_collection(LineCollection(pose[bones], colors=color, linewidths=2.0 if is_key else 1.5,
+                ax.add_collection(LineCollection(_segments(pose, par), colors=color, linewidths=2.0 if is_key else 1.5,
                                                  capstyle="round", antialiaseds=False, zorder=2 if is_key else 1),
                                   autolim=False)
                 if is_key:
@@ -267,7 +275,7 @@ def animate(positions, parents, path, fps: float = 30, keyframes: Sequence[int] 
                         line.set_linewidth(width)
                         ax.draw_artist(line)
                 else:
-                    art.set_segments(d[f][bones])
+                    art.set_segments(_segments(d[f], p))
                     art.set_color(color)
                     art.set_linewidth(width)
                     ax.draw_artist(art)
@@ -386,7 +394,9 @@ def bvh_previews(motion, name: str, frames=(None, None), every: int = 5, keyfram
     frames: (a, b), either may be None; negative numbers count from the end.  keyframes: frame numbers
     of the file (drawn black; they must lie in the selection); the sheet and the GIF print file frame
     numbers.  Writes ``<name>_sheet.png`` (and ``<name>.gif``); ``progress`` as in :func:`preview_writers`.
+    Drawn in centimetres, whatever the file's unit (:func:`~inbetween_jax.data.features.detect_unit_scale`).
     """
+    from inbetween_jax.data.features import detect_unit_scale
     n = motion.num_frames
     a, b = frames
     sel = range(n)[slice(a, b)]
@@ -399,6 +409,7 @@ def bvh_previews(motion, name: str, frames=(None, None), every: int = 5, keyfram
         raise ValueError(f"{name}: keyframes {list(keyframes)} must lie in the selected frames "
                          f"[{first}, {first + len(sel)})")
     part = motion.slice(sel.start, sel.stop)
-    return preview_writers(motion_positions(part), part.skeleton.parents, name, fps=motion.fps, every=every,
+    cm = detect_unit_scale(motion.skeleton)                       # as infill's previews (cli/outputs.py)
+    return preview_writers(motion_positions(part) * cm, part.skeleton.parents, name, fps=motion.fps, every=every,
                            keyframes=keys, gif=gif, title=name, first_frame=first,
                            progress=progress)

@@ -212,13 +212,15 @@ def test_bench_evaluates_shipped_interaction_weights_on_real_pairs(monkeypatch, 
         pytest.skip("shared CMU salsa data (cmu_pairs) not available")
     monkeypatch.delenv("INBETWEEN_WEIGHTS_DIR", raising=False)
     calls = []
-    spec = SimpleNamespace(benchmark=lambda *a: calls.append(a) or {"markdown": "table", "rows": [{"value": 1.0}]})
+    rows = [{"model": "interaction", "value": 1.0}, {"model": "interpolation", "value": 2.0}]
+    spec = SimpleNamespace(benchmark=lambda *a: calls.append(a) or {"markdown": "table", "rows": rows})
     monkeypatch.setitem(REGISTRY, "interaction", spec)
     raw = read_motion(os.path.join(pairs, "60_01_scaled.bvh")).skeleton
     out = bench_cmd.shipped_section("interaction", str(tmp_path / "none"), pairs, "bvh-folder", raw,
                                     SimpleNamespace(results=str(tmp_path), quick=True))
     assert raw.num_joints == 43 and calls and calls[0][0] == pairs
     assert out["rows"][0]["weights"] == "shipped" and "shipped weights" in out["markdown"]
+    assert "weights" not in out["rows"][1]                       # a baseline row beside the model's
 
 
 @pytest.mark.slow
@@ -230,7 +232,7 @@ def test_bench_section_from_shipped_cae(shipped, tmp_path, monkeypatch):
     monkeypatch.setenv("INBETWEEN_WEIGHTS_DIR", shipped["root"])
     out = shipped_section("cae", str(tmp_path / "runs" / "cae"), "embedded", "cmu-embedded",
                           read_motion(CLIP_A).skeleton, SimpleNamespace(results=str(tmp_path / "res"), quick=True))
-    assert out["rows"] and all(r["weights"] == "shipped" for r in out["rows"])
+    assert out["rows"] and all((r.get("weights") == "shipped") == (r["model"] == "cae") for r in out["rows"])
     assert out["markdown"].startswith("**cae: shipped weights** (step 2, trained on embedded")
 
 

@@ -1,6 +1,5 @@
-"""The S-CVAE ablation sweep: seeds vmapped in one program reproduce their single runs; the CLI writes a
-mean ± std table.  Real CMU windows (the embedded training split)."""
-import importlib.util
+"""The S-CVAE ablation sweep: seeds vmapped in one program reproduce their single runs; ``inbetween sweep`` writes
+a mean ± std table.  Real CMU windows (the embedded training split)."""
 import json
 import os
 
@@ -8,23 +7,14 @@ import jax
 import numpy as np
 import pytest
 
+from inbetween_jax.cli import main
 from inbetween_jax.data import load_dataset
 from inbetween_jax.models.scvae import train as T
 from inbetween_jax.models.scvae.features import TrainData, compute_stats
 from inbetween_jax.train import enable_compilation_cache
 from inbetween_jax.train import sweep
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 FRAMES = 10   # the tiny preset's own transition length: the sweep's "full" row is get_config("tiny")
-
-
-@pytest.fixture(scope="module")
-def script():
-    """``experiments/sweep.py`` (a thin argparse front end of :mod:`inbetween_jax.train.sweep`)."""
-    spec = importlib.util.spec_from_file_location("sweep_script", os.path.join(ROOT, "experiments", "sweep.py"))
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 def test_row_configs_turn_off_one_switch():
@@ -68,9 +58,9 @@ def test_vmapped_seeds_match_single_seed_runs():
     assert losses[:steps] != losses[steps:], "two seeds gave the same run"
 
 
-def test_sweep_cli_writes_mean_std_table(script, tmp_path):
+def test_sweep_cli_writes_mean_std_table(tmp_path):
     rows = ["full", "no_d"]
-    assert script.main(["--rows", ",".join(rows), "--seeds", "2", "--steps", "2", "--frames", str(FRAMES),
+    assert main(["sweep", "--rows", ",".join(rows), "--seeds", "2", "--steps", "2", "--frames", str(FRAMES),
                        "--samples", "2", "--results", str(tmp_path)]) == 0
     md = (tmp_path / "sweep_scvae.md").read_text()
     lines = {line.split("|")[1].strip(): line for line in md.splitlines() if line.startswith("| ")}
@@ -85,8 +75,8 @@ def test_sweep_cli_writes_mean_std_table(script, tmp_path):
         assert len(r["per_seed"]) == 2 and all(np.isfinite(m["L2P"]) for m in r["per_seed"])
 
 
-def test_sweep_cli_refuses_an_unknown_row_in_one_line(script, tmp_path, capsys):
-    assert script.main(["--rows", "full,no_such_row", "--results", str(tmp_path)]) == 2
+def test_sweep_cli_refuses_an_unknown_row_in_one_line(tmp_path, capsys):
+    assert main(["sweep", "--rows", "full,no_such_row", "--results", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "no_such_row" in err
     assert not os.listdir(tmp_path)

@@ -5,6 +5,9 @@
     inbetween infill --model MODEL [--ckpt RUN] ... --out DIR [--preview] [--gif]         in-between BVH files
     inbetween preview FILE.bvh [--frames a:b] [--gif] [--out DIR]                         draw a BVH file
     inbetween demo                                                                        tiny end-to-end demo
+    inbetween speed [--results DIR] [--torch-ref FILE.py]                                 JAX / PyTorch speed
+    inbetween sweep [--rows full,no_d,...] [--seeds N] [--steps N] [key=value ...]        ablations x seeds
+    inbetween ship-weights RUN_DIR [--step N] [--dtype float16|float32] [--why TEXT]      ship a run's weights
 
 Arguments and input files are checked before JAX is imported, so mistakes are reported at once.  Problems with
 the inputs print one line ``inbetween: error: ...`` and exit with status 2; a bug prints one line with status 1
@@ -31,13 +34,16 @@ class Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from inbetween_jax.cli import bench_cmd, demo_cmd, infill_cmd, train_cmd
+    from inbetween_jax.cli import (bench_cmd, demo_cmd, infill_cmd, ship_weights_cmd, speed_cmd, sweep_cmd,
+                                   train_cmd)
+    from inbetween_jax.cli.helptext import plain_help
     ap = Parser(prog="inbetween", description=__doc__.split("\n\n")[0].split(": ", 1)[1],
                 formatter_class=argparse.RawDescriptionHelpFormatter,
                 epilog="\n".join(__doc__.split("\n\n")[1].splitlines()) + "\n\n'inbetween COMMAND --help' for each.")
     sub = ap.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
-    for module in (train_cmd, bench_cmd, infill_cmd, demo_cmd):
+    for module in (train_cmd, bench_cmd, infill_cmd, demo_cmd, speed_cmd, sweep_cmd, ship_weights_cmd):
         module.add_parser(sub)
+    plain_help(ap)                                # the texts come from docstrings: no Sphinx markup
     return ap
 
 
@@ -56,7 +62,7 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     try:
         args, extra = build_parser().parse_known_args(argv)
-        if extra and getattr(args, "command", None) == "train":     # key=value overrides after options
+        if extra and hasattr(args, "overrides"):     # key=value overrides after options (train, sweep)
             is_override = ["=" in a and not a.startswith("-") for a in extra]
             args.overrides = list(args.overrides) + [a for a, o in zip(extra, is_override) if o]
             extra = [a for a, o in zip(extra, is_override) if not o]

@@ -71,21 +71,40 @@ def _check(args) -> list:
     return models
 
 
-def shipped_section(model: str, run_dir: str, source: str, data: str, skeleton, args) -> dict | None:
-    """``model``'s section from its shipped weights (rows marked ``weights: shipped``), a skip line saying why they
-    do not apply, or None when no weights ship for it."""
+def data_label(src) -> str | None:
+    """A data source as shown in the tables: a named source as it is, a folder by its name only (a run.json may
+    record the trainer's machine-specific path)."""
+    return src if not src or src in ("embedded", "cmu") else os.path.basename(os.path.normpath(str(src)))
+
+
+def why_not_run(run_dir: str) -> str | None:
+    """Why ``run_dir`` is not benchmarked as a run, in the section's words: ``"no run in"`` (missing),
+    ``"no checkpoint yet in"`` (a run folder whose training stopped before its first checkpoint); else None."""
+    if not os.path.exists(run_dir):
+        return "no run in"
+    from inbetween_jax.train.run import RunError, load_run
+    try:
+        return "no checkpoint yet in" if load_run(run_dir, need_checkpoint=False).step is None else None
+    except RunError:
+        return None                                  # not a run folder: its benchmark says why in one line
+
+
+def shipped_section(model: str, run_dir: str, source: str, data: str, skeleton, args,
+                    why: str = "no run in") -> dict | None:
+    """``model``'s section from its shipped weights (the model's own rows marked ``weights: shipped``), a skip line
+    saying why they do not apply, or None when no weights ship for it; ``why``: why the run folder is not used."""
     from inbetween_jax.data import Skeleton
     from inbetween_jax.shipped import shipped_dir, shipped_run
     from inbetween_jax.train.run import RunError
     folder = shipped_dir(model)
     if folder is None:
         return None
-    skip = f"**{model}**: skipped, no run in `{run_dir}`"
+    skip = f"**{model}**: skipped, {why} `{run_dir}`"
     try:
         run_ = shipped_run(model)
     except RunError as err:
         return {"markdown": f"{skip}; the shipped weights are unusable ({err}).", "rows": []}
-    trained_on = run_.shipped.get("data_source") or "CMU mocap"
+    trained_on = data_label(run_.shipped.get("data_source")) or "CMU mocap"
     if data == "lafan1":
         return {"markdown": f"{skip}; the shipped {model} weights were trained on CMU mocap ({trained_on}) and do not "
                             f"apply to LaFAN1 (train one with `inbetween train {model}`).", "rows": []}
@@ -94,15 +113,16 @@ def shipped_section(model: str, run_dir: str, source: str, data: str, skeleton, 
     if not pairs and (skel is None or not skel.same_topology(skeleton)):
         return {"markdown": f"{skip}; the shipped {model} weights ({skel.num_joints if skel else '?'} joints) do not fit "
                             f"this source's {skeleton.num_joints}-joint skeleton.", "rows": []}
-    say(f"{model}: no run in {run_dir}, evaluating the shipped weights ({folder}, step {run_.step})")
+    say(f"{model}: {why} {run_dir}, evaluating the shipped weights ({folder}, step {run_.step})")
     try:
         out = REGISTRY[model].benchmark(source, args.results, folder, args.quick)
     except (OSError, ValueError) as err:
         return {"markdown": f"{skip}; shipped weights: {err}", "rows": []}
     for row in out.get("rows", []):
-        row["weights"] = "shipped"
+        if row.get("model") in (model, "bank"):      # not the baselines, ground truth or paper rows beside them
+            row["weights"] = "shipped"
     out["weights"] = {"shipped": folder, "step": run_.step, "trained_on": trained_on}
-    out["markdown"] = (f"**{model}: shipped weights** (step {run_.step}, trained on {trained_on}; no run in "
+    out["markdown"] = (f"**{model}: shipped weights** (step {run_.step}, trained on {trained_on}; {why} "
                        f"`{run_dir}`)\n\n{out.get('markdown', '')}")
     return out
 
@@ -155,8 +175,8 @@ def run(args) -> int:
     for i, model in enumerate(models):
         run_dir = os.path.join(args.runs, model)
         say(f"section {3 + i}: {model} (runs in {run_dir})")
-        shipped = None if os.path.exists(run_dir) else shipped_section(model, run_dir, source, data, bench.skeleton,
-                                                                       args)
+        why = why_not_run(run_dir)                   # missing, or no checkpoint yet: the shipped weights if they fit
+        shipped = None if why is None else shipped_section(model, run_dir, source, data, bench.skeleton, args, why)
         real_pairs = model == "interaction" and has_real_pairs(source)   # baselines table without a run
         if shipped is not None:
             out = shipped
@@ -184,6 +204,11 @@ def run(args) -> int:
             sections.append(out.get("markdown", ""))
     sections.append(f"Benchmark wall time: {time.time() - t0:.1f} s.")
     results["rows"] = rows
+    from inbetween_jax.evaluation.figures import figures_markdown, worst_case_figures
+    sections.append(figures_markdown(rows, args.results))         # one PNG per data set, beside bench.md
+    from inbetween_jax.shipped import shipped_dir
+    calibrations = {m: os.path.join(d, "ood_calibration.json") for m in models if (d := shipped_dir(m))}
+    sections.append(worst_case_figures(rows, args.results, calibrations))   # per-window ratios; gate calibration
     text = "\n\n".join(s for s in sections if s) + "\n"
     os.makedirs(args.results, exist_ok=True)
     with open(os.path.join(args.results, "bench.md"), "w") as fh:

@@ -20,7 +20,7 @@ EXAMPLES = """examples:
   inbetween infill --model scvae --start a.bvh:0 --end b.bvh:120 --frames 30 --out out/   (shipped weights)
   inbetween infill --model scvae --ckpt runs/scvae --start a.bvh:0 --end b.bvh:120 --frames 30 --samples 10 --out out/
   inbetween infill --model cae --ckpt runs/cae/cae --bvh in.bvh --gaps 100:160,300:420 --out out/ --preview
-  inbetween infill --model interaction --ckpt runs/interaction --a a.bvh:40 --b b.bvh:40 \\
+  inbetween infill --model interaction --a a.bvh:40 --b b.bvh:40 \\
       --key-a a.bvh:90 --key-b b.bvh:90 --frames 50 --samples 3 --out out/ --preview --gif"""
 
 

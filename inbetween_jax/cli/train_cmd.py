@@ -14,7 +14,7 @@ from inbetween_jax.models import MODELS, REGISTRY
 
 EPILOG = """examples:
   inbetween train cae --preset tiny --source embedded train.num_steps=20     # a 20-step smoke run (~1 min)
-  inbetween train scvae                                                       # the CPU preset on the default data
+  inbetween train scvae                                                       # the {default} preset (default)
   inbetween train scvae --preset paper --source $LAFAN1_DIR                   # the paper's sizes and schedule
 Re-running the same command resumes from the run folder's latest checkpoint."""
 
@@ -22,13 +22,15 @@ Re-running the same command resumes from the run folder's latest checkpoint."""
 def add_parser(sub) -> None:
     p = sub.add_parser("train", help="train or resume a model run",
                        description="Train (or resume) a registered model into a run folder (run.json + checkpoints/).",
-                       epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter, add_help=False)
+                       epilog=EPILOG.format(default=REGISTRY["scvae"].default_preset),
+                       formatter_class=argparse.RawDescriptionHelpFormatter, add_help=False)
     p.add_argument("-h", "--help", action="store_true", help="show this help (with MODEL: its config keys)")
     p.add_argument("model", nargs="?", metavar="MODEL", help=" | ".join(MODELS))
-    p.add_argument("--preset", default=None, help="config preset: paper | cpu | tiny (default cpu)")
+    p.add_argument("--preset", default=None, help=f"config preset: {_preset_help()}")
     p.add_argument("--source", default=None,
                    help="training data: a LaFAN1 or BVH folder, 'embedded', or 'cmu' (more CMU mocap from "
-                        "$INBETWEEN_SHARED_DATA; default: $LAFAN1_DIR, else the embedded CMU clips)")
+                        "$INBETWEEN_SHARED_DATA; default: $LAFAN1_DIR, else for scvae / cae 'cmu' when that folder "
+                        "is found, else the embedded CMU clips)")
     p.add_argument("--run-dir", default=None, help="run folder (default runs/MODEL)")
     p.add_argument("--num-processes", type=int, default=1,
                    help="launch N local processes on JAX's distributed runtime (a single-machine check; on a "
@@ -37,6 +39,15 @@ def add_parser(sub) -> None:
     p.add_argument("--traceback", action="store_true", help="show the Python traceback of unexpected errors")
     p.add_argument("overrides", nargs="*", metavar="key=value", help="config overrides")
     p.set_defaults(run=run, parser=p)
+
+
+def _preset_help() -> str:
+    """The presets and the default one (each model's ``DEFAULT_PRESET``), as the registry says."""
+    names = list(dict.fromkeys(p for spec in REGISTRY.values() for p in spec.presets))
+    defaults = {spec.default_preset for spec in REGISTRY.values()}
+    default = (defaults.pop() if len(defaults) == 1
+               else ", ".join(f"{m}: {s.default_preset}" for m, s in REGISTRY.items()))
+    return f"{' | '.join(names)} (default {default}; 'inbetween train MODEL --help' lists a model's presets)"
 
 
 def model_help(model: str, preset: str | None) -> str:
@@ -70,7 +81,8 @@ def _check(args) -> None:
 def run(args) -> int:
     if args.help or args.model is None:
         text = model_help(args.model, args.preset) if args.model in REGISTRY else args.parser.format_help()
-        print(text, file=sys.stdout if args.help else sys.stderr)
+        from inbetween_jax.cli.helptext import plain
+        print(plain(text), file=sys.stdout if args.help else sys.stderr)
         return 0 if args.help else 2
     _check(args)
     if args.num_processes > 1:
@@ -94,11 +106,16 @@ CMU_DEFAULT_MODELS = ("scvae", "cae")
 
 def default_source(model: str, source):
     """``--source`` if given, else ``$LAFAN1_DIR``; else, for the single-character models, ``cmu`` (every CMU clip
-    on the embedded rig) when the shared mocap folder is found, else the embedded clips."""
+    on the embedded rig) when the shared mocap folder holds its folders, else the embedded clips (a note on stderr
+    says so, and why)."""
     if source or os.environ.get("LAFAN1_DIR") or model not in CMU_DEFAULT_MODELS:
         return source
-    from inbetween_jax.paths import shared_data_dir
-    return "cmu" if shared_data_dir() else None
+    from inbetween_jax.data.sources import cmu_unavailable
+    why = cmu_unavailable()
+    if why is None:
+        return "cmu"
+    print(f"inbetween: note: training on the embedded CMU clips instead of the cmu source: {why}", file=sys.stderr)
+    return None
 
 
 def _without_num_processes(argv: list) -> list:

@@ -78,16 +78,17 @@ class Motion:
                                    skeleton=dataclasses.replace(self.skeleton, offsets=self.skeleton.offsets * factor))
 
 
-def read_bvh(path, start: Optional[int] = None, end: Optional[int] = None) -> Motion:
+def read_bvh(path, start: Optional[int] = None, end: Optional[int] = None, notes: Optional[list] = None) -> Motion:
     """Read a BVH file (any skeleton, any channel order) into a :class:`Motion` (frames [start, end)).
 
-    Frames beyond the count in the ``Frames:`` line are ignored; fewer frames than it declares raise
-    :class:`BVHError`. The exporter variants accepted are listed in :mod:`inbetween_jax.data.bvh_parse`.
+    Frames beyond the count in the ``Frames:`` line are ignored (``notes``, a list, gets a line saying so);
+    fewer frames than it declares raise :class:`BVHError`. The exporter variants accepted are listed in
+    :mod:`inbetween_jax.data.bvh_parse`.
     """
     path = os.fspath(path)
     lines = read_lines(path)
     skel, motion_line = parse_hierarchy(path, lines)
-    values, frame_time = parse_motion(path, lines, motion_line, skel.num_channels)
+    values, frame_time = parse_motion(path, lines, motion_line, skel.num_channels, notes)
     values = values[start:end]
     if values.shape[0] == 0:
         raise BVHError(path, None, f"frame range [{start}, {end}) selects no frames")

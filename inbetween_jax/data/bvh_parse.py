@@ -237,8 +237,9 @@ def _layout_ok(counts: list, nchan: int) -> bool:
     return counts == counts[:per] * (len(counts) // per)  # every frame split the same way
 
 
-def parse_motion(path: str, lines: list, start: int, nchan: int):
-    """Parse the MOTION block after line index ``start``. Returns (values (T, C) float64, frame_time)."""
+def parse_motion(path: str, lines: list, start: int, nchan: int, notes: Optional[list] = None):
+    """Parse the MOTION block after line index ``start``. Returns (values (T, C) float64, frame_time).
+    Frames beyond the ``Frames:`` count are dropped; ``notes`` (a list) gets a line saying so."""
     frames, frame_time, i = _parse_header(path, lines, start)
     if nchan == 0:
         raise BVHError(path, start, "the hierarchy declares no channels")
@@ -277,6 +278,10 @@ def parse_motion(path: str, lines: list, start: int, nchan: int):
         row = int(np.searchsorted(np.cumsum(counts), bad, side="right"))
         col = bad - (int(np.sum(counts[:row])) if row else 0)
         raise BVHError(path, data[row][0], f"{problem} value {_show(words[bad])} in column {col + 1}")
+    extra = total // nchan - frames
+    if extra and notes is not None:
+        notes.append(f"{path}: {extra} frame{'s' if extra != 1 else ''} of motion data beyond its "
+                     f"'Frames: {frames}' line ignored")
     return values.reshape(-1, nchan)[:frames], frame_time
 
 

@@ -44,12 +44,12 @@ import numpy as np
 from inbetween_jax.data import lafan1, sources
 from inbetween_jax.data.bvh import Motion, read_bvh
 from inbetween_jax.data.features import detect_unit_scale
+from inbetween_jax.data.files import (EMBEDDED_DIR, EMBEDDED_TEST_PREFIXES,  # noqa: F401 (re-exported)
+                                      bvh_files, embedded_files, progress)
 from inbetween_jax.data.resample import WORKING_FPS, nominal_fps, resample_motion
 from inbetween_jax.data.skeleton import Skeleton
 from inbetween_jax.data.windows import MotionWindows, windows_from_motions
 
-EMBEDDED_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "assets", "cmu30")
-EMBEDDED_TEST_PREFIXES = ("13_", "14_")
 CACHE_VERSION = 2
 SPLITS = ("train", "test", "benchmark", "val", "fit", "val-subjects", "fit-subjects")
 HELD_OUT_SPLITS = {"val": "file", "fit": "file", "val-subjects": "subject", "fit-subjects": "subject"}
@@ -86,19 +86,13 @@ def split_files(source: str, split: str) -> list:
         return val if split.startswith("val") else [f for f in train if f not in val]
     if source == sources.CMU:
         return sources.cmu_split_files(split)
-    if source == "embedded" or not is_lafan1(source):
-        folder = EMBEDDED_DIR if source == "embedded" else source
-        if not os.path.isdir(folder):
-            raise FileNotFoundError(f"data folder {folder!r} does not exist")
-        files = sorted(os.path.join(folder, f) for f in os.listdir(folder) if f.lower().endswith(".bvh"))
-        if not files:
-            raise FileNotFoundError(f"no .bvh files in {folder!r}")
-        if source == "embedded":
-            test = [f for f in files if os.path.basename(f).startswith(EMBEDDED_TEST_PREFIXES)]
-        elif len(files) == 1:
+    if source == "embedded":
+        return embedded_files(split)
+    if not is_lafan1(source):
+        files = bvh_files(source)
+        if len(files) == 1:
             return files
-        else:
-            test = files[min(int(round(len(files) * 0.8)), len(files) - 1):]
+        test = files[min(int(round(len(files) * 0.8)), len(files) - 1):]
         return test if split != "train" else [f for f in files if f not in test]
     return lafan1.lafan1_files(source, lafan1.split_spec(split)["subjects"])
 
@@ -220,7 +214,7 @@ def _read_motions(source: str, split: str, fps: float, unit_scale: Optional[floa
         return sources.read_cmu_train(files, split, fps)
     motions, rates = [], Counter()
     scale0 = None
-    for f in _progress(files, f"reading {split} BVH"):
+    for f in progress(files, f"reading {split} BVH"):
         m = read_bvh(f)
         if motions:  # checked as read: a wrong file fails before the rest of the folder is parsed
             first = motions[0]
@@ -309,15 +303,6 @@ def _load_npz(path: str):
         data = MotionWindows(z["local_quats"], z["root_pos"], z["contacts"], skel,
                              [str(s) for s in z["seq_names"]], float(z["fps"]), float(z["unit_scale"]))
         return data, (str(z["note"]) or None)
-
-
-def _progress(items, desc):
-    """A file-reading progress bar, only on a terminal (a log file gets no carriage-return noise)."""
-    try:
-        from tqdm import tqdm
-        return tqdm(items, desc=desc, leave=False, disable=len(items) < 4 or not sys.stderr.isatty())
-    except ImportError:  # pragma: no cover
-        return items
 
 
 __all__ = ["Motion", "MotionWindows", "SPLITS", "HELD_OUT_SPLITS", "val_split_of", "is_fit_split", "WORKING_FPS", "detect_unit_scale", "load_dataset", "load_motions",

@@ -36,6 +36,8 @@ from collections import Counter, OrderedDict
 
 import numpy as np
 
+from inbetween_jax.data.files import EMBEDDED_DIR, embedded_files, progress
+
 CMU = "cmu"
 NAMED_SOURCES = ("embedded", CMU)
 CMU_VERSION = 3             # part of the window-cache key: bump when the conversion below changes
@@ -51,7 +53,7 @@ VAL_GROUPINGS = ("file", "subject")
 _JOINT = re.compile(r"^\s*(?:ROOT|JOINT)\s+(\S+)")
 
 __all__ = ["CMU", "NAMED_SOURCES", "VAL_FRACTION", "VAL_GROUPINGS", "trial_name", "cmu_split_files", "cmu_train_plan",
-           "val_files", "reference_skeleton", "to_reference", "read_cmu_train"]
+           "cmu_unavailable", "val_files", "reference_skeleton", "to_reference", "read_cmu_train"]
 
 
 def trial_name(path: str):
@@ -104,11 +106,10 @@ def cmu_train_plan() -> tuple:
     sorted) and ``dropped`` = {"subjects 13/14": [...], "duplicates": [...], "other skeleton": [...]}.
 
     Raises UserError (one line) when the shared folder is missing."""
-    from inbetween_jax.data.datasets import split_files
     from inbetween_jax.paths import shared_data_dir
     shared = shared_data_dir(required=True)
-    files = split_files("embedded", "train")
-    seen = {trial_name(f) for f in split_files("embedded", "train") + split_files("embedded", "test")}
+    files = embedded_files("train")
+    seen = {trial_name(f) for f in embedded_files("train") + embedded_files("test")}
     ref_names = reference_skeleton().names
     dropped = {"subjects 13/14": [], "duplicates": [], "other skeleton": []}
     for sub in CMU_FOLDERS:
@@ -130,12 +131,24 @@ def cmu_train_plan() -> tuple:
     return files, dropped
 
 
+def cmu_unavailable():
+    """None when the ``cmu`` source's folders are there, else one line saying why not (the shared mocap folder,
+    or one of :data:`CMU_FOLDERS` in it, missing)."""
+    from inbetween_jax.errors import UserError
+    from inbetween_jax.paths import shared_data_dir
+    try:
+        shared = shared_data_dir(required=True)
+    except UserError as e:
+        return str(e)
+    missing = [sub for sub in CMU_FOLDERS if not os.path.isdir(os.path.join(shared, sub))]
+    return f"{shared} lacks {', '.join(missing)}" if missing else None
+
+
 def cmu_split_files(split: str) -> list:
     """BVH paths of ``split`` (train / test / benchmark) of the ``cmu`` source (see the module docstring)."""
-    from inbetween_jax.data.datasets import split_files
     if split == "train":
         return cmu_train_plan()[0]
-    return split_files("embedded", split)
+    return embedded_files(split)
 
 
 def _stem(path: str) -> str:
@@ -182,8 +195,7 @@ def val_files(train: list, fraction: float = VAL_FRACTION, by: str = "file") -> 
 def reference_skeleton():
     """The embedded data's 21-joint skeleton (every ``cmu`` training motion is put on it)."""
     from inbetween_jax.data.bvh import read_bvh
-    from inbetween_jax.data.datasets import split_files
-    return read_bvh(split_files("embedded", "train")[0]).skeleton
+    return read_bvh(embedded_files("train")[0]).skeleton
 
 
 def unit_factor(skel, ref) -> float:
@@ -224,7 +236,6 @@ def to_reference(motion, ref, fps: float, drop_tpose: bool = True):
 
 
 def _folder_label(path: str, shared: str) -> str:
-    from inbetween_jax.data.datasets import EMBEDDED_DIR
     if os.path.dirname(os.path.abspath(path)) == os.path.abspath(EMBEDDED_DIR):
         return "embedded"
     return os.path.relpath(os.path.dirname(os.path.abspath(path)), shared)
@@ -234,12 +245,11 @@ def read_cmu_train(files: list, split: str, fps: float) -> tuple:
     """(motions on the embedded skeleton at ``fps``, the line saying what they are) for the ``cmu`` training
     files ``files`` (all of ``train``, or its ``val`` / ``fit`` part)."""
     from inbetween_jax.data.bvh import read_bvh
-    from inbetween_jax.data.datasets import _progress
     from inbetween_jax.data.rig_transfer import transfer_mb31
     from inbetween_jax.paths import shared_data_dir
     shared, ref = shared_data_dir(required=True), reference_skeleton()
     motions, frames, count, scaled, moved = [], Counter(), Counter(), Counter(), Counter()
-    for f in _progress(files, f"reading cmu {split} BVH"):
+    for f in progress(files, f"reading cmu {split} BVH"):
         label = _folder_label(f, shared)
         raw = read_bvh(f)
         if not _on_reference(f, ref.names) and _on_mb31_rig(f):

@@ -34,14 +34,21 @@ def split_spec(spec: str, option: str) -> tuple:
 
 
 def read_motion(path: str):
-    """read_bvh with every failure turned into a one-line UserError naming the file."""
+    """read_bvh with every failure turned into a one-line UserError naming the file; what the tolerant reader
+    let pass (motion rows beyond the ``Frames:`` line) is said in one ``inbetween: note:`` line on stderr."""
+    import sys
+
     from inbetween_jax.data.bvh import BVHError, read_bvh
+    notes = []
     try:
-        return read_bvh(path)
+        motion = read_bvh(path, notes=notes)
     except BVHError as e:
         raise UserError(str(e)) from None
     except OSError as e:
         raise UserError(f"{path}: cannot read ({e.strerror or e})") from None
+    for note in notes:
+        print(f"inbetween: note: {note}", file=sys.stderr)
+    return motion
 
 
 def pick_frame(motion, path: str, frame, default: int, option: str) -> int:

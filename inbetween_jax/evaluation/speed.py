@@ -1,16 +1,23 @@
-"""Speed section of ``make bench``: compiled JAX against PyTorch eager, in one process, after warm-up.
+"""Speed section of ``make bench``: compiled JAX against PyTorch (eager and ``torch.compile``), in one process.
 
-    run(source=None, results_dir="results", reps=10, quick=False, torch_ref=None) -> dict (with "markdown")
+    run(source=None, results_dir="results", reps=10, quick=False, torch_ref=None, torch_skip=None,
+        torch_cae=None) -> dict
 
-``torch_ref``: the PyTorch-eager S-CVAE reference module (``experiments/torch_scvae.py``: ``available()``,
-``make_step(...)``) or None (torch absent: its rows say skipped).  Front end: ``experiments/bench_speed.py``.
+``torch_ref``: the PyTorch S-CVAE reference module (``experiments/torch_scvae.py``: ``available()``,
+``make_step(..., compile_backend=None)``) or None (its cells say skipped, with ``torch_skip`` as the reason,
+default "torch not installed"); ``torch_cae``: the CAE reference (default ``torch_cae.py`` beside ``torch_ref``'s
+file).  Front end: ``inbetween speed`` (:mod:`inbetween_jax.cli.speed_cmd`; ``make bench``'s last section).
 
-Rows (medians of ``--reps`` timed calls, every call blocked on its result):
+Rows (medians of ``--reps`` timed calls, at least 5 for the training steps; every call blocked on its result):
 
-* S-CVAE training step -- paper widths, batch 32, a 50-frame transition (L = 51), forward + backward +
-  AdamW update of generators and discriminators -- in frames/s (32 x 50 frames per step), for JAX (the
-  jitted, buffer-donating step that ``run_training`` uses) and for the ``torch_ref`` module (PyTorch
-  eager, same layer sizes and batch; the row is skipped without it).
+* Training steps, each timed side by side in rounds (every variant once per round, rotating order, so a change
+  in machine load hits all alike): JAX's jitted, buffer-donating step (``run_training``'s) against the PyTorch
+  reference in eager mode and under ``torch.compile`` (backends :data:`TORCH_BACKENDS`, each compiled in its
+  first call, which is timed; one that takes over :data:`COMPILE_TIMEOUT_S` s or fails counts as not
+  compiling).  S-CVAE: paper and half (``cpu``) widths, batch 32, a 50-frame transition (L = 51), generators and
+  discriminators.  CAE: the ``improved`` and ``cpu`` presets (``--quick``: ``improved``), one real batch of the
+  preset's training clips after the gap-length curriculum.  json: ``jax_step_ms``, ``torch_step_ms``,
+  ``torch_compile_step_ms`` / ``_backend`` / ``_s`` and ``torch_compile_tries`` per width and preset.
 * S-CVAE inference: 10 diverse 50-frame transitions of one keyframe pair in one vmapped call (ms), and the
   batched throughput (transitions/s) for 64 pairs x 10 samples.
 * CAE inference (paper widths) on a 1927-frame sequence, ms per frame (paper: 0.3 ms/frame on a GPU).
@@ -28,12 +35,13 @@ import dataclasses
 import json
 import os
 import platform
+import sys
 import tempfile
 import time
 
 import numpy as np
 
-__all__ = ["run", "markdown", "scvae_rows", "cae_rows", "interaction_rows"]
+__all__ = ["run", "markdown", "scvae_rows", "cae_rows", "cae_train_rows", "interaction_rows", "TORCH_BACKENDS"]
 
 
 def _compile_pair(jitted, *args):
@@ -52,6 +60,82 @@ def _compile_pair(jitted, *args):
     return cold, cached
 
 
+TORCH_BACKENDS = ("inductor", "aot_eager")      # torch.compile backends tried, in order of preference
+COMPILE_TIMEOUT_S = 300                         # a backend that needs longer counts as not compiling
+
+
+def _first_call_s(step, timeout_s=COMPILE_TIMEOUT_S) -> float:
+    """Seconds of ``step()``'s first call (torch.compile compiles there); TimeoutError past ``timeout_s``."""
+    import signal
+    import threading
+
+    def _stop(*_):
+        raise TimeoutError(f"no compiled step within {timeout_s} s")
+
+    alarm = hasattr(signal, "SIGALRM") and threading.current_thread() is threading.main_thread()
+    if alarm:
+        old = signal.signal(signal.SIGALRM, _stop)
+        signal.alarm(int(timeout_s))
+    t0 = time.perf_counter()
+    try:
+        step()
+    finally:
+        if alarm:
+            signal.alarm(0)
+            signal.signal(signal.SIGALRM, old)
+    return time.perf_counter() - t0
+
+
+def _side_by_side(fns: dict, reps: int, warmup: int = 1) -> dict:
+    """ms of each call of ``fns[name]()`` over ``reps`` rounds ({name: [ms, ...]}); each round calls every function
+    once, in turn (the order rotates), so a change in machine load hits all of them alike.  Blocked on results."""
+    from inbetween_jax.profiling import block
+    names = list(fns)
+    for n in names:
+        for _ in range(warmup):
+            block(fns[n]())
+    times = {n: [] for n in names}
+    for r in range(reps):
+        for n in names[r % len(names):] + names[:r % len(names)]:
+            t0 = time.perf_counter()
+            block(fns[n]())
+            times[n].append(round((time.perf_counter() - t0) * 1e3, 1))
+    return times
+
+
+def _compare_steps(out: dict, jax_call, make_torch, reps: int) -> None:
+    """JAX's step against PyTorch eager and ``torch.compile`` (each backend of :data:`TORCH_BACKENDS`), timed side
+    by side; fills ``jax_step_ms`` [, ``torch_step_ms``, ``torch_compile_step_ms`` / ``_backend`` / ``_s`` (the
+    first backend that compiled; its first call, compile + one step), ``torch_compile_tries``] and ``calls_ms``
+    (every timed call).  make_torch: ``backend or None -> step closure``, or None (no torch)."""
+    fns, tries = {"jax": jax_call}, {}
+    if make_torch is not None:
+        fns["torch"] = make_torch(None)
+        for be in TORCH_BACKENDS:
+            try:
+                step = make_torch(be)
+                tries[be] = {"compile_s": _first_call_s(step)}
+                fns[be] = step
+            except Exception as e:                      # noqa: BLE001 -- any failure means "does not compile"
+                tries[be] = {"error": f"{type(e).__name__}: {(str(e).strip().splitlines() or [''])[0][:160]}"}
+                if "torch._dynamo" in sys.modules:    # a half-done compile leaves no state behind
+                    sys.modules["torch._dynamo"].reset()
+    out["calls_ms"] = _side_by_side(fns, max(5, reps))
+    med = {n: float(np.median(t)) for n, t in out["calls_ms"].items()}
+    out["jax_step_ms"] = med["jax"]
+    if make_torch is None:
+        return
+    out["torch_step_ms"] = med["torch"]
+    for be in tries:
+        if be in med:
+            tries[be]["step_ms"] = med[be]
+    ok = [be for be in TORCH_BACKENDS if "step_ms" in tries[be]]
+    if ok:
+        out.update(torch_compile_step_ms=tries[ok[0]]["step_ms"], torch_compile_backend=ok[0],
+                   torch_compile_s=tries[ok[0]]["compile_s"])
+    out["torch_compile_tries"] = tries
+
+
 def _train_step_row(variant, win, data, stats, reps, torch_ref=None, batch=32, n_trans=50):
     """JAX and PyTorch-eager S-CVAE training steps of one width on the same real batch."""
     import jax
@@ -59,7 +143,7 @@ def _train_step_row(variant, win, data, stats, reps, torch_ref=None, batch=32, n
 
     from inbetween_jax.models.scvae import train as scvae_train
     from inbetween_jax.models.scvae.config import get_config
-    from inbetween_jax.profiling import matmul_flops, median_ms, time_calls
+    from inbetween_jax.profiling import matmul_flops
     from inbetween_jax.train.loop import make_step_fn, strongly_typed
 
     length = n_trans + 1
@@ -86,15 +170,17 @@ def _train_step_row(variant, win, data, stats, reps, torch_ref=None, batch=32, n
         holder["s"], m = jit_step(holder["s"], dev_batch, i0)
         return m["loss"]
 
-    out["jax_step_ms"] = median_ms(time_calls(run_step, reps=reps, warmup=2))
-    out["jax_frames_s"] = batch * n_trans / (out["jax_step_ms"] / 1e3)
+    make_torch = None
+    if torch_ref is not None and torch_ref.available():
+        def make_torch(backend):
+            return torch_ref.make_step(cfg, j, data.parents, stats, np_batch, length, seed=0, compile_backend=backend)
+        out["torch_threads"] = int(torch_ref.torch.get_num_threads())
+    _compare_steps(out, run_step, make_torch, reps)
+    for k in ("jax", "torch", "torch_compile"):
+        if f"{k}_step_ms" in out:
+            out[f"{k}_frames_s"] = batch * n_trans / (out[f"{k}_step_ms"] / 1e3)
     out["step_gflop"] = flops / 1e9
     out["jax_gflops"] = flops / (out["jax_step_ms"] / 1e3) / 1e9
-    if torch_ref is not None and torch_ref.available():
-        tstep = torch_ref.make_step(cfg, j, data.parents, stats, np_batch, length, seed=0)
-        out["torch_step_ms"] = median_ms(time_calls(tstep, reps=max(3, reps // 2), warmup=1))
-        out["torch_frames_s"] = batch * n_trans / (out["torch_step_ms"] / 1e3)
-        out["torch_threads"] = int(torch_ref.torch.get_num_threads())
     return out, cfg, holder["s"]
 
 
@@ -167,6 +253,45 @@ def cae_rows(source, reps, quick):
     return out
 
 
+def cae_train_rows(source, reps, presets=("improved", "cpu"), torch_cae=None) -> dict:
+    """CAE training steps of ``presets`` (``inbetween train cae``'s jitted step: mask draw, forward, backward,
+    Adam) on one real batch of its training clips, against the ``torch_cae`` reference (eager and compiled).
+    Returns {preset: row}."""
+    import jax
+
+    from inbetween_jax.models.cae import train as cae_train
+    from inbetween_jax.models.cae.config import get_config
+    from inbetween_jax.train.loop import make_step_fn, strongly_typed
+
+    rows = {}
+    for preset in presets:
+        cfg = get_config(preset)
+        tr = cae_train.make_training(cfg, cae_train.load_data(cfg, source, "train"))
+        batch = tr.batch_fn(cfg.train.num_steps // 2, jax.random.key(2))      # after the gap-length curriculum
+        state = jax.tree.map(strongly_typed, tr.init_fn(jax.random.key(0)))
+        params0 = jax.tree.map(np.asarray, state["params"])                   # before the donated steps
+        jit_step = make_step_fn(tr.step_fn, jax.random.key(1))
+        i0 = np.int32(0)
+        out = {"preset": preset, "batch": int(batch["x"].shape[0]), "rows": int(batch["x"].shape[1]),
+               "frames": int(batch["x"].shape[2]), "channels": list(cfg.model.channels),
+               "params": int(sum(a.size for a in jax.tree.leaves(params0)))}
+        dev = jax.tree.map(jax.numpy.asarray, batch)
+        out["compile_train"] = _compile_pair(jit_step, state, dev, i0)
+        holder = {"s": state}
+
+        def run_step():
+            holder["s"], m = jit_step(holder["s"], dev, i0)
+            return m["loss"]
+
+        make_torch = None
+        if torch_cae is not None and torch_cae.available():
+            def make_torch(backend, cfg=cfg, batch=batch, params0=params0):
+                return torch_cae.make_step(cfg, params0, batch["x"], batch["mu"], batch["matched"], backend)
+        _compare_steps(out, run_step, make_torch, reps)
+        rows[preset] = out
+    return rows
+
+
 def interaction_rows(source, reps, quick):
     import jax
     import jax.numpy as jnp
@@ -207,38 +332,56 @@ def _fmt_pair(p):
     return f"{p[0]:.1f} / {p[1]:.1f}"
 
 
+def _step_cells(w: dict, skip: str) -> str:
+    """The JAX / eager / compiled / ratio cells of one training-step row (ms per step)."""
+    if "torch_step_ms" not in w:
+        return f"{w['jax_step_ms']:.0f} ms | {skip} | {skip} | - | - |"
+    if "torch_compile_step_ms" in w:
+        comp = (f"{w['torch_compile_step_ms']:.0f} ms ({w['torch_compile_backend']}, "
+                f"{w['torch_compile_s']:.0f} s)")
+        comp_ratio = f"{w['torch_compile_step_ms'] / w['jax_step_ms']:.2f}x"
+    else:
+        comp, comp_ratio = "did not compile", "-"
+    return (f"{w['jax_step_ms']:.0f} ms | {w['torch_step_ms']:.0f} ms | {comp} | "
+            f"{w['torch_step_ms'] / w['jax_step_ms']:.2f}x | {comp_ratio} |")
+
+
 def markdown(r) -> str:
     s, c, i = r["scvae"], r["cae"], r["interaction"]
     lines = [f"## Speed (JAX {r['jax']}, {r['device']}, {r['cpus']} cores; medians after warm-up, one process)", "",
              f"Matmul peak (float32 1024^3, measured): {r['peak_gflops']:.1f} GFLOP/s.", "",
-             "| row | JAX | PyTorch eager | ratio | target |", "|---|---|---|---|---|"]
+             "Training steps, timed side by side (each round calls every variant once): JAX's jitted step against "
+             "PyTorch eager and `torch.compile` (the first backend of "
+             f"{', '.join(TORCH_BACKENDS)} that compiled within {COMPILE_TIMEOUT_S} s; its first call, compile + one "
+             "step, in brackets). Ratios: PyTorch's time over JAX's (> 1: JAX is faster).", "",
+             "| train step | JAX | PyTorch eager | PyTorch compiled | eager / JAX | compiled / JAX |",
+             "|---|---|---|---|---|---|"]
+    skip = f"{r.get('torch_skip') or 'torch not installed'}"
     for name, w in s["widths"].items():
-        if "torch_step_ms" in w:
-            ratio = w["jax_frames_s"] / w["torch_frames_s"]
-            torch_cell = f"{w['torch_frames_s']:.0f} frames/s ({w['torch_step_ms']:.0f} ms)"
-            ratio_cell = f"{ratio:.2f}x"
-        else:
-            torch_cell, ratio_cell = "skipped (torch not installed)", "-"
-        lines.append(f"| S-CVAE train step, {name} widths ({w['gen_params'] / 1e6:.1f} M generator params), batch "
-                     f"{w['batch']}, {w['n_trans']}-frame transition | {w['jax_frames_s']:.0f} frames/s "
-                     f"({w['jax_step_ms']:.0f} ms) | {torch_cell} | {ratio_cell} | JAX >= 2x |")
+        lines.append(f"| S-CVAE, {name} widths ({w['gen_params'] / 1e6:.1f} M generator params), batch {w['batch']}, "
+                     f"{w['n_trans']}-frame transition | " + _step_cells(w, skip))
+    for name, w in c.get("train", {}).items():
+        lines.append(f"| CAE `{name}` (channels {','.join(map(str, w['channels']))}, {w['params'] / 1e3:.0f} k params), "
+                     f"batch {w['batch']} x {w['rows']} x {w['frames']} | " + _step_cells(w, skip))
+    lines += ["", "| row | JAX | target |", "|---|---|---|"]
     bound = 1e3 * s["infer_10_gflop"] / r["peak_gflops"]
-    lines += [
+    lines += ["| S-CVAE train step against PyTorch eager | first table | JAX >= 2x |",
               f"| S-CVAE inference, 10 samples x 1 pair | {s['infer_10_ms']:.1f} ms ({s['infer_10_gflop']:.1f} GFLOP: "
-              f">= {bound:.0f} ms at the matmul peak) | | | <= 20 ms |",
+              f">= {bound:.0f} ms at the matmul peak) | <= 20 ms |",
               f"| S-CVAE inference, {s['infer_batch']} transitions per call | {s['infer_transitions_s']:.0f} "
-              "transitions/s | | | |",
+              "transitions/s | |",
               f"| CAE inference, {c['frames']} frames (paper widths) | {c['ms_per_frame']:.3f} ms/frame "
-              f"({c['ms']:.0f} ms) | | | < 0.3 ms/frame (paper, GPU) |",
-              f"| Interaction net, 10 frames x 2 characters (+ refiner) | {i['ms']:.2f} ms | | | <= 5 ms "
+              f"({c['ms']:.0f} ms) | < 0.3 ms/frame (paper, GPU) |",
+              f"| Interaction net, 10 frames x 2 characters (+ refiner) | {i['ms']:.2f} ms | <= 5 ms "
               "(paper: 125 ms) |",
               f"| S-CVAE step (paper widths) achieved FLOP/s | {s['jax_gflops']:.1f} GFLOP/s = "
-              f"{100 * s['jax_gflops'] / r['peak_gflops']:.0f} % of peak ({s['step_gflop']:.1f} GFLOP/step) | | | |",
+              f"{100 * s['jax_gflops'] / r['peak_gflops']:.0f} % of peak ({s['step_gflop']:.1f} GFLOP/step) | |",
               "", "Compile times, s (cold with the persistent cache off / served from the persistent cache); "
               "target <= 30 s:", "",
               "| function | cold / cached |", "|---|---|",
               *[f"| S-CVAE train step, {n} widths | {_fmt_pair(w['compile_train'])} |" for n, w in s["widths"].items()],
               f"| S-CVAE vmapped rollout (10 samples) | {_fmt_pair(s['compile_infer'])} |",
+              *[f"| CAE train step, `{n}` | {_fmt_pair(w['compile_train'])} |" for n, w in c.get("train", {}).items()],
               f"| CAE forward, 1927 frames | {_fmt_pair(c['compile'])} |",
               f"| Interaction step | {_fmt_pair(i['compile'])} |"]
     if "torch_threads" in s:
@@ -246,9 +389,24 @@ def markdown(r) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run(source=None, results_dir="results", reps=10, quick=False, torch_ref=None) -> dict:
+def _sibling(module, name: str):
+    """Module ``name`` from the folder of ``module``'s file (the CAE reference beside the S-CVAE one), or None."""
+    path = os.path.join(os.path.dirname(os.path.abspath(getattr(module, "__file__", None) or ".")), name + ".py")
+    if module is None or not os.path.isfile(path):
+        return None
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("inbetween_" + name, path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def run(source=None, results_dir="results", reps=10, quick=False, torch_ref=None, torch_skip=None,
+        torch_cae=None) -> dict:
     """All speed rows; writes ``speed.md`` / ``speed.json`` under ``results_dir`` and returns the record.
-    torch_ref: the PyTorch-eager S-CVAE reference module, or None."""
+    torch_ref: the PyTorch-eager S-CVAE reference module, or None; torch_skip: why there is none (the skipped
+    rows say it; default "torch not installed"); torch_cae: the CAE reference (default: ``torch_cae.py`` beside
+    ``torch_ref``'s file)."""
     import jax
 
     from inbetween_jax.data import resolve_source
@@ -262,9 +420,13 @@ def run(source=None, results_dir="results", reps=10, quick=False, torch_ref=None
          "platform": platform.processor() or platform.machine(), "cpus": os.cpu_count(), "reps": reps}
     if torch_ref is not None and torch_ref.available():
         r["torch"] = torch_ref.torch.__version__
+    elif torch_skip or torch_ref is not None:
+        r["torch_skip"] = torch_skip if torch_ref is None else "torch not installed"
     r["peak_gflops"] = matmul_peak_flops() / 1e9
     r["scvae"] = scvae_rows(src, reps, quick, torch_ref=torch_ref)
     r["cae"] = cae_rows(src, reps, quick)
+    r["cae"]["train"] = cae_train_rows(src, reps, ("improved",) if quick else ("improved", "cpu"),
+                                       torch_cae if torch_cae is not None else _sibling(torch_ref, "torch_cae"))
     r["interaction"] = interaction_rows(src, reps, quick)
     r["peak_gflops_after"] = matmul_peak_flops() / 1e9
     r["wall_s"] = time.time() - t0

@@ -25,11 +25,13 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["RUN_FILE", "WEIGHTS_FILE", "FORMAT", "RunError", "Run", "write_run", "load_run", "load_run_file",
-           "record_training", "restore_state", "to_json_arrays", "from_json_arrays", "flat_leaves"]
+__all__ = ["RUN_FILE", "WEIGHTS_FILE", "SELECTION_FILE", "FORMAT", "RunError", "Run", "write_run", "load_run",
+           "load_run_file", "record_training", "restore_state", "selected_step", "to_json_arrays", "from_json_arrays",
+           "flat_leaves"]
 
 RUN_FILE = "run.json"
 WEIGHTS_FILE = "params.npz"
+SELECTION_FILE = "selection.json"     # the checkpoint chosen on the validation split (train/select.py)
 FORMAT = 1
 _NOT_CORE = ("num_steps", "log_every", "ckpt_every")
 
@@ -88,6 +90,18 @@ def _core(config: dict) -> dict:
     return c
 
 
+def _added_keys(old: dict, new: dict) -> dict:
+    """``old`` with the keys only ``new`` has (config fields added since the run was written) taken from
+    ``new``, so a run resumes under a newer version whose added switches keep their defaults."""
+    out = dict(old)
+    for k, v in new.items():
+        if k not in out:
+            out[k] = v
+        elif isinstance(v, dict) and isinstance(out[k], dict):
+            out[k] = _added_keys(out[k], v)
+    return out
+
+
 def _read(path: str, run_dir: str) -> dict:
     try:
         with open(path) as f:
@@ -126,7 +140,7 @@ def write_run(run_dir: str, *, model: str, preset: str, overrides, config: dict,
             "data": to_json_arrays(data or {}), "extra": to_json_arrays(extra or {}), "history": []}
     if os.path.exists(path):
         old = _read(path, run_dir)
-        if old["model"] != model or _core(old["config"]) != _core(config):
+        if old["model"] != model or _core(_added_keys(old["config"], config)) != _core(config):
             raise RunError(f"{run_dir} holds a {old['model']} run with another config (preset {old.get('preset')}, "
                            f"overrides {old.get('overrides')}); pass the same settings to resume or choose another "
                            "--run-dir")
@@ -173,6 +187,19 @@ def _checkpoint_steps(ckpt_dir: str) -> list[int]:
     return sorted(steps)
 
 
+def selected_step(run_dir: str) -> int | None:
+    """The step recorded in ``selection.json`` (written by :mod:`inbetween_jax.train.select`; None when the run
+    has no selection)."""
+    path = os.path.join(run_dir, SELECTION_FILE)
+    if not os.path.exists(path):
+        return None
+    try:
+        with open(path) as f:
+            return int(json.load(f)["step"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
 def load_run(run_dir: str, step: int | None = None, need_checkpoint: bool = True) -> Run:
     """Read a run folder; ``step`` defaults to the step chosen on the validation split (``selection.json``,
     :mod:`inbetween_jax.train.select`), else the latest checkpoint.
@@ -190,7 +217,6 @@ def load_run(run_dir: str, step: int | None = None, need_checkpoint: bool = True
         return _shipped_run(run_dir, meta, step)
     steps = _checkpoint_steps(os.path.join(run_dir, "checkpoints"))
     if step is None:
-        from .select import selected_step
         chosen = selected_step(run_dir)
         step = chosen if chosen in steps else (steps[-1] if steps else None)
     elif step not in steps:

@@ -3,7 +3,9 @@
 A run trained with ``train.split="fit"`` (or ``"fit-subjects"``) holds the validation files out of training (see
 :func:`inbetween_jax.data.datasets.split_files`).  :func:`select_checkpoint` scores every checkpoint of the
 run with the model's ``bench.val_score(run, source)`` (lower is better) and writes ``selection.json`` beside
-``run.json``; :func:`inbetween_jax.train.run.load_run` then opens the selected step unless a step is asked for.
+``run.json``; :func:`inbetween_jax.train.run.load_run` then opens the selected step unless a step is asked for
+(the run-folder format, :mod:`inbetween_jax.train.run`, owns the file's name and reading it: this module only
+chooses and writes).
 """
 from __future__ import annotations
 
@@ -11,21 +13,9 @@ import json
 import os
 from typing import Callable
 
-SELECTION_FILE = "selection.json"
+from inbetween_jax.train.run import SELECTION_FILE, RunError, _checkpoint_steps, load_run, selected_step
 
 __all__ = ["SELECTION_FILE", "select_checkpoint", "select_with_bench", "selected_step"]
-
-
-def selected_step(run_dir: str) -> int | None:
-    """The step recorded in ``selection.json`` (None when the run has no selection)."""
-    path = os.path.join(run_dir, SELECTION_FILE)
-    if not os.path.exists(path):
-        return None
-    try:
-        with open(path) as f:
-            return int(json.load(f)["step"])
-    except (OSError, ValueError, KeyError, TypeError):
-        return None
 
 
 def select_checkpoint(run_dir: str, source: str, score_fn: Callable, metric: str,
@@ -33,7 +23,6 @@ def select_checkpoint(run_dir: str, source: str, score_fn: Callable, metric: str
     """Score each checkpoint of ``run_dir`` with ``score_fn(run) -> float`` (lower is better) on ``source``'s
     validation split ``split``; record and return ``{"metric", "split", "source", "scores": {step: score},
     "step"}``."""
-    from inbetween_jax.train.run import RunError, _checkpoint_steps, load_run
     steps = _checkpoint_steps(os.path.join(run_dir, "checkpoints"))
     known = _known_scores(run_dir, source, metric, split)   # steps scored by an earlier selection: not again
     scores = {}
@@ -68,8 +57,7 @@ def select_checkpoint(run_dir: str, source: str, score_fn: Callable, metric: str
 def select_with_bench(run_dir: str, source: str, bench, log: Callable[[str], None] | None = print) -> dict:
     """:func:`select_checkpoint` with a model's ``bench.val_score`` on ``source``, recorded under the bench's
     ``VAL_METRIC`` name (default ``"val L2P"``)."""
-    from inbetween_jax.data.datasets import val_split_of
-    from inbetween_jax.train.run import load_run
+    from inbetween_jax.data.datasets import val_split_of     # here: the datasets module imports JAX
     split = val_split_of(load_run(run_dir, need_checkpoint=False).config.get("train", {}).get("split", "fit"))
     return select_checkpoint(run_dir, source, lambda r: bench.val_score(r, source),
                              getattr(bench, "VAL_METRIC", "val L2P"), log=log, split=split)

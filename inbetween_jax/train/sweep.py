@@ -28,19 +28,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from inbetween_jax.train.ablations import ABLATIONS, DEFAULT_STEPS
 from inbetween_jax.train.loop import run_keys
 
 __all__ = ["ABLATIONS", "COLUMNS", "DEFAULT_STEPS", "N_PAST", "seed_keys", "stack_batches", "make_vmapped",
            "train_seeds", "row_config", "evaluate_seeds", "markdown", "run"]
 
-# model -> row name -> (label of Table 6, ModelConfig switch turned off; None = full model)
-ABLATIONS = {"scvae": {
-    "full": ("S-CVAE (full)", None), "no_bs": ("w/o BS", "bidirectional"), "no_li": ("w/o LI", "latent_interp"),
-    "no_ba": ("w/o BA", "aligning"), "no_pm": ("w/o PM", "phase_moe"), "no_lstm": ("w/o LSTM", "encoder_lstm"),
-    "no_d": ("w/o D", "discriminators"), "no_sl": ("w/o SL", "stitch_loss")}}
-N_PAST = 10
+N_PAST = 10      # ABLATIONS (rows) and DEFAULT_STEPS live in train/ablations.py (no JAX: the CLI checks them first)
 COLUMNS = ("L2P", "L2Q", "NPSS", "ADE", "FootSlide", "APD")
-DEFAULT_STEPS = {"tiny": 200, "cpu": 2000, "paper": 20000}
 
 
 # ----------------------------------------------------------------------------- generic: N seeds, one program

@@ -85,6 +85,7 @@ def run(source: str | None, results_dir: str, run_dir: str | None, quick: bool =
     """Evaluate every CAE run of ``run_dir``; returns ``{"markdown", "rows", ...the tables}``."""
     from inbetween_jax.data import load_motions, resolve_source
     from inbetween_jax.evaluation import infilling as proto
+    from inbetween_jax.evaluation.worst_case import worst_case_markdown
     from inbetween_jax.models.cae.infer import load
 
     runs = find_runs(run_dir)
@@ -133,6 +134,14 @@ def run(source: str | None, results_dir: str, run_dir: str | None, quick: bool =
               "wall_s": time.time() - t0}
     result["rows"] = _rows(result, methods, _data_name(src))
     result["markdown"] = _markdown(result, methods)
+    names = [m.source for m in motions for s in range(0, m.num_frames - proto.CLIP_LENGTH + 1, proto.CLIP_STRIDE)]
+    from inbetween_jax.models.cae.calibrate import per_window_rows
+    wc = per_window_rows(positions, names[:len(x)], methods, _data_name(src), runs, models)
+    result["rows"] += wc
+    result["markdown"] += "\n\n" + "\n\n".join(
+        worst_case_markdown([r for r in wc if r["base"] == base and r["split"] == split],
+                            f"CAE per clip and gap position, {split}")
+        for base in ("the Hermite fill", "linear fill") for split in dict.fromkeys(r["split"] for r in wc))
     os.makedirs(results_dir, exist_ok=True)
     with open(os.path.join(results_dir, "cae_bench.json"), "w") as fh:
         json.dump({k: v for k, v in result.items() if k != "markdown"}, fh, indent=1)
@@ -349,3 +358,4 @@ def _markdown(r, methods) -> str:
                        "Bone lengths on reconstruction (cm): mean over bones; a paste_known run's "
                        "reconstruction is its input", keys=("Model",), digits=2)]
     return "\n\n".join(parts) + "\n"
+

@@ -87,6 +87,10 @@ class ModelConfig:
     fill: str = "linear"                        # residual form's pre-fill: linear | hermite (not the paper)
     mirror_average: bool = False                # inference: mean of the fill and the un-mirrored fill of the
                                                 # left-right mirrored clip (not the paper)
+    ood_gate: bool = False                      # inference: blend toward the fill as the gap's context leaves the
+                                                # training motion (ood.npz, models/ood.py; on in the shipped weights)
+    root_bound: float = 0.0                     # inference: the root path stays within this many metres of the
+                                                # base's root path (0: unbounded, the paper)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -24,7 +24,7 @@ from inbetween_jax.data.filters import gaussian_lowpass
 from inbetween_jax.geometry.heading import rotate_about_up
 
 __all__ = ["num_features", "MotionFeatures", "smoothed_facing_yaw", "positions_to_features", "body_frame_features",
-           "split_features", "body_positions", "integrate_root", "features_to_global", "to_global", "ClipBank",
+           "split_features", "body_positions", "integrate_root", "features_to_global", "to_global", "root_base_path", "bound_root_path", "ClipBank",
            "build_clip_bank", "mirror_rows", "mirror_clips"]
 
 
@@ -174,13 +174,17 @@ def body_positions(x_norm, normalizer: Normalizer, num_joints: int) -> np.ndarra
     return split_features(f, num_joints)[0]
 
 
-def to_global(y_norm, normalizer: Normalizer, num_joints: int, ref0, yaw0: float, known_feats=None, frame_mask=None):
+def to_global(y_norm, normalizer: Normalizer, num_joints: int, ref0, yaw0: float, known_feats=None, frame_mask=None,
+              root_bound: float = 0.0):
     """One clip (D, T) normalised -> (T, J, 3) global positions.
 
     Without ``known_feats``: the predicted root velocities are integrated from ``(ref0, yaw0)`` at frame 0.
     With ``known_feats`` ((T, D) un-normalised input features) and ``frame_mask`` ((T,), 1 = known), the known
     frames keep the input trajectory and each gap integrates the predicted velocities from the frame before
     it, with the end mismatch spread linearly over the gap (so the path meets the next known frame).
+    ``root_bound`` > 0 (data units; with ``known_feats``): the root's floor path in the gaps stays within that
+    distance of :func:`root_base_path`, the limited cubic Hermite through the known root positions (a deviation
+    d becomes ``d min(1, root_bound / |d|)``), so an integrated path cannot run ahead of the motion and back.
     """
     from inbetween_jax.models.cae.masks import gap_ranges
     y = normalizer.inverse(np.asarray(y_norm, np.float64).T)
@@ -204,9 +208,30 @@ def to_global(y_norm, normalizer: Normalizer, num_joints: int, ref0, yaw0: float
         off = 1 if a > 0 else 0
         ref[a:b] = seg_ref[off:off + n] + w * d_ref
         yaw[a:b] = seg_yaw[off:off + n] + w[:, 0] * d_yaw
+    if root_bound > 0:
+        ref = bound_root_path(ref, frame_mask, root_bound)
     local, _ = split_features(y, num_joints)
     xz = rotate_about_up(local[..., [0, 2]], yaw[:, None])
     return np.stack([xz[..., 0] + ref[:, None, 0], local[..., 1], xz[..., 1] + ref[:, None, 1]], axis=-1)
+
+
+def root_base_path(ref, frame_mask) -> np.ndarray:
+    """(T, 2) floor path with every gap (``frame_mask`` (T,) 0) bridged by the limited cubic Hermite of the known
+    positions (:func:`inbetween_jax.baselines.hermite_fill`: velocities matched at the gap's edges, no overshoot
+    past the secant per axis; a straight line stays straight)."""
+    from inbetween_jax.baselines.hermite_fill import hermite_fill
+    ref = np.asarray(ref, np.float64)
+    return np.asarray(hermite_fill(ref.T, np.asarray(frame_mask)[None] > 0.5), np.float64).T
+
+
+def bound_root_path(ref, frame_mask, bound: float) -> np.ndarray:
+    """(T, 2) floor path whose gap frames are pulled to within ``bound`` of :func:`root_base_path`."""
+    ref = np.asarray(ref, np.float64)
+    base = root_base_path(ref, frame_mask)
+    dev = ref - base
+    scale = np.minimum(1.0, bound / np.maximum(np.linalg.norm(dev, axis=-1, keepdims=True), 1e-12))
+    gap = (np.asarray(frame_mask) < 0.5)[:, None]
+    return np.where(gap, base + dev * scale, ref)
 
 
 @dataclasses.dataclass

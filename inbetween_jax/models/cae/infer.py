@@ -40,8 +40,9 @@ class TrainedCAE:
     and checkpoint ``step``."""
 
     def __init__(self, params, cfg: Config, normalizer: Normalizer, skeleton: Skeleton, num_joints: int,
-                 step: int):
+                 step: int, gate: tuple | None = None):
         self.params, self.cfg, self.normalizer, self.skeleton, self.step = params, cfg, normalizer, skeleton, step
+        self.gate = gate            # (ContextBank, Gate) of ood.npz when model.ood_gate is on
         self.num_joints = int(num_joints)
         apply = functools.partial(cae_model.apply, cfg=cfg)
         if cfg.model.mirror_average:
@@ -79,14 +80,23 @@ def load(run: Run) -> TrainedCAE:
                             jax.random.key(0))
     state = restore_state(run, target)
     normalizer = Normalizer(np.asarray(run.stats["mean"], np.float32), np.asarray(run.stats["std"], np.float32))
-    return TrainedCAE(state["params"], cfg, normalizer, Skeleton.from_dict(run.skeleton), j, run.step)
+    gate = None
+    if cfg.model.ood_gate:
+        from inbetween_jax.models.ood import load_gate
+        gate = load_gate(run.run_dir)
+        if gate is None:
+            raise RunError(f"{run.run_dir}: model.ood_gate is on but the folder holds no ood.npz (calibrate it with "
+                           "`python experiments/calibrate_gate.py cae RUN_DIR`)")
+    return TrainedCAE(state["params"], cfg, normalizer, Skeleton.from_dict(run.skeleton), j, run.step, gate)
 
 
-def fill(model, x_norm, mask, keep_known: bool = False, chunk: int = 64) -> np.ndarray:
+def fill(model, x_norm, mask, keep_known: bool = False, chunk: int = 64, gate: bool = True) -> np.ndarray:
     """Model reconstruction of ``x_norm * mask``: (B, D, T) or (D, T) -> same shape.
 
     ``model`` is a :class:`TrainedCAE` (or any object with ``predict(x, mask)``).  A run with
-    ``model.paste_known`` returns the known entries unchanged whatever ``keep_known`` says.
+    ``model.paste_known`` returns the known entries unchanged whatever ``keep_known`` says.  With
+    ``model.ood_gate`` (and ``gate``) every gap -- a run of frames with nothing known -- is moved toward the
+    pre-fill by the out-of-distribution gate (:func:`inbetween_jax.models.cae.gate.gate_clips`).
     """
     x = np.asarray(x_norm, np.float32)
     single = x.ndim == 2
@@ -94,6 +104,9 @@ def fill(model, x_norm, mask, keep_known: bool = False, chunk: int = 64) -> np.n
     xb, mb = ((x * m)[None], m[None]) if single else (x * m, m)
     out = np.concatenate([np.asarray(model.predict(xb[i:i + chunk], mb[i:i + chunk]))
                           for i in range(0, len(xb), chunk)])
+    if gate and getattr(model, "gate", None) is not None and model.cfg.model.ood_gate:
+        from inbetween_jax.models.cae.gate import gate_clips
+        out = gate_clips(model, xb, mb, out)[0]
     out = out[0] if single else out
     if keep_known:
         out = np.where(np.asarray(mask) > 0.5, x, out)
@@ -141,7 +154,13 @@ def process_motion(model, motion, gaps=(), noise: float = 0.0, dropout: float = 
         mask = mask * dropout_mask(rng, (t_len,), j, dropout)
     x_in = add_position_noise(rng, x, j, noise) if noise > 0 else x
     y = fill(model, x_in, mask, keep_known=keep_known)
-    pos = to_global(y, model.normalizer, j, feats.ref0, feats.yaw0, known_feats=feats.features, frame_mask=fm)
+    gated = []
+    if gaps and getattr(model, "gate", None) is not None and model.cfg.model.ood_gate:
+        from inbetween_jax.models.cae.gate import gate_clips
+        gated = gate_clips(model, x_in[None] * mask[None], mask[None], y[None])[1][0]   # y is gated: the report
+    bound = float(getattr(model.cfg.model, "root_bound", 0.0)) * 100.0 if hasattr(model, "cfg") else 0.0
+    pos = to_global(y, model.normalizer, j, feats.ref0, feats.yaw0, known_feats=feats.features, frame_mask=fm,
+                    root_bound=bound if gaps else 0.0)
     scored = (fm < 0.5) if gaps else np.ones(t_len, bool)     # gaps: their frames; otherwise every frame
     err = mpjpe(body_positions(y, model.normalizer, j), body_positions(x, model.normalizer, j),
                 mask=scored, root_relative=False)
@@ -152,7 +171,8 @@ def process_motion(model, motion, gaps=(), noise: float = 0.0, dropout: float = 
     fk = forward_kinematics(np.asarray(lq, np.float64), np.asarray(lp, np.float64), skel.parents)[1]
     fk_gap = float(np.linalg.norm(fk - pos, axis=-1)[refit].mean()) if refit.any() else 0.0
     return {"positions": pos.astype(np.float32), "motion": out, "frames": refit,
-            "error_cm": (float(err[0]), float(err[1])), "fk_gap_cm": fk_gap}
+            "error_cm": (float(err[0]), float(err[1])), "fk_gap_cm": fk_gap, "gaps_ood": gated}
+
 
 
 def _save_npy(path, arr) -> None:
@@ -179,6 +199,7 @@ def infill(args, run: Run) -> InfillResult:
     prep = prepare(user, args.bvh, Skeleton.from_dict(run.skeleton), run.fps)
     notes = []
     gaps = parse_gaps(args.gaps, user.num_frames, args.bvh, notes=notes)
+    file_gaps = gaps                                                  # the file's own frame numbers (infill.json)
     motion = prep.motion
     if prep.ratio != 1.0:
         gaps = resampled_gaps(gaps, prep.ratio, motion.num_frames, args.gaps, args.bvh)
@@ -193,9 +214,16 @@ def infill(args, run: Run) -> InfillResult:
     for a, b in gaps:
         gen[a:b] = True
     out = res["motion"] if prep.match is None else expand(res["motion"], prep.full, prep.match, ~gen)
-    summary = {"input": args.bvh, "gaps": gaps, "frames": motion.num_frames, "step": model.step,
+    summary = {"input": args.bvh, "gaps": file_gaps, "frames": motion.num_frames, "step": model.step,
                "error_cm_mean": res["error_cm"][0], "fk_gap_cm": res["fk_gap_cm"],
                "refit_frames": int(np.sum(res["frames"]))}
+    if res["gaps_ood"]:             # the gate, per gap (in the order of "gaps")
+        from inbetween_jax.models.ood import gate_note
+        summary["gaps_ood"] = [{"gap_index": i, "ood_score": g["ood_score"], "gate_weight": g["gate_weight"]}
+                               for i, g in enumerate(res["gaps_ood"])]
+        for i, g in enumerate(res["gaps_ood"]):
+            if g["gate_weight"] < 0.5:
+                notes.append(f"gap {i + 1}: " + gate_note(g["ood_score"], g["gate_weight"], "the Hermite fill"))
     return InfillResult(samples=[(f"{stem}_filled", [out], gen)], summary=summary,
                         extra_files={f"{stem}_filled.npy": functools.partial(_save_npy, arr=pos)},
                         what="known frames", notes=notes)

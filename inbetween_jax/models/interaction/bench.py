@@ -204,6 +204,8 @@ def run(source, results_dir: str, run_dir, quick: bool = False) -> dict:
         pairs = load_pairs(data_source, d.pair_distance)
     train, test = split_pairs(pairs, "train", d.split), split_pairs(pairs, "test", d.split)
     constructed = any(p.constructed for p in pairs)
+    shown = (data_source or "default source") if data_source in (source, "embedded", "cmu") else \
+        f"the run's training data ({os.path.basename(os.path.normpath(str(data_source)))})"   # not a trainer's path
     windows = proto.table1_windows(test, d.pos_scale, 24 if quick else 128)
     stats = proto.l2p_stats(train, d.pos_scale)   # the protocol's fixed key range: one scale for every run
     J = pairs[0].feats.shape[2]
@@ -288,7 +290,7 @@ def run(source, results_dir: str, run_dir, quick: bool = False) -> dict:
     kind = ("CONSTRUCTED pairs (single-person clips paired by us, not real two-person captures)" if constructed
             else "REAL two-person capture pairs (split by whole takes: " +
             ", ".join(f"{sp} {[p.name for p in pairs if p.split == sp]}" for sp in ("train", "test")) + ")")
-    note = (f"Data: {data_source or 'default source'}; {len(pairs)} {kind}; {J} joints at {pairs[0].fps:g} fps; "
+    note = (f"Data: {shown}; {len(pairs)} {kind}; {J} joints at {pairs[0].fps:g} fps; "
             f"test windows per length {n_win}; interaction classifier trained on the training pairs, accuracy "
             f"{cls[2]:.2f}. {proto.GUESS_NOTE} "
             + proto.NPSS_NOTE + (" " + " ".join(notes) if notes else ""))

@@ -151,7 +151,7 @@ def infill(args, run: Run) -> InfillResult:
     num_joints = run.extra.get("num_joints")
     n_in = cfg.data.n_input
     cache = {}
-    chars, notes = [], []
+    chars, notes, own = [], [], []                    # own: the files' frame numbers (infill.json)
     for opt, kopt, spec, kspec in (("--a", "--key-a", args.a, args.key_a), ("--b", "--key-b", args.b, args.key_b)):
         path, m, start = read_keyframe(spec, opt, -1, cache)
         kpath, km, kf = read_keyframe(kspec, kopt, -1, cache)
@@ -160,6 +160,7 @@ def infill(args, run: Run) -> InfillResult:
             check_skeleton(m.skeleton, path, skel, num_joints)
         prep, factor = _on_run_rig(m, path, skel, run.fps, notes)
         kprep = prep if kpath == path else _on_run_rig(km, kpath, skel, run.fps, [])[0]
+        own.append((start, kf))
         start, kf = to_frame(prep, start), to_frame(kprep, kf)
         if start < n_in - 1:
             raise UserError(f"{opt} {path}: the model needs {n_in} frames of context (at {run.fps or m.fps:g} fps) up "
@@ -185,8 +186,8 @@ def infill(args, run: Run) -> InfillResult:
             finite_or_fail(run.run_dir, motion.local_quats, motion.local_pos)
             motions.append(_on_user_rig(motion, prep, s, kprep, kf, factor))
         samples.append((name, motions, None))
-    summary = {"a": f"{pa}:{chars[0][2]}", "b": f"{pb}:{chars[1][2]}", "key_a": f"{chars[0][3]}:{chars[0][5]}",
-               "key_b": f"{chars[1][3]}:{chars[1][5]}", "frames": args.frames, "samples": args.samples,
+    summary = {"a": f"{pa}:{own[0][0]}", "b": f"{pb}:{own[1][0]}", "key_a": f"{chars[0][3]}:{own[0][1]}",
+               "key_b": f"{chars[1][3]}:{own[1][1]}", "frames": args.frames, "samples": args.samples,
                "step": trained.step}
     return InfillResult(samples=samples, summary=summary, what="start / keyframe", notes=list(dict.fromkeys(notes)))
 
@@ -217,7 +218,7 @@ def _on_user_rig(motion, prep, start: int, kprep, key_frame: int, factor: float)
         return motion
     from inbetween_jax.data.retarget import expand
     t = motion.num_frames
-    idx = np.r_[start, np.full(t - 2, start), key_frame]
+    idx = np.full(t, start)        # key_frame is the key file's: taken from kprep.full below
     keys = dataclasses.replace(prep.full, local_quats=prep.full.local_quats[idx].copy(),
                                local_pos=prep.full.local_pos[idx].copy())
     keys.local_quats[-1], keys.local_pos[-1] = kprep.full.local_quats[key_frame], kprep.full.local_pos[key_frame]

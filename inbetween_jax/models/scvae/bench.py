@@ -34,9 +34,10 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
     """
     from inbetween_jax import metrics
     from inbetween_jax.data import l2p_stats, load_dataset, resolve_source
-    from inbetween_jax.data.datasets import is_lafan1
     from inbetween_jax.evaluation import TABLE_COLUMNS, baseline_table1, flat_rows, markdown_table, transition_metrics
+    from inbetween_jax.evaluation.worst_case import worst_case_markdown, worst_case_rows
     from inbetween_jax.models.scvae import infer
+    from inbetween_jax.models.scvae.gate import gate_windows
     from inbetween_jax.train.run import RunError, load_run
 
     t0 = time.time()
@@ -67,6 +68,9 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
     rows = [r for r in baseline_table1(bench, x_mean, x_std, lengths, N_PAST) if r["method"] == "Slerp"]
     longest = None
     model_cfg = trained.cfg.model
+    gated = trained.gate is not None and model_cfg.ood_gate
+    fa = tuple(trained.extra.get("forward_axis") or bench.skeleton.forward_axis())
+    per_window = []
     use_bank, show_bank = (trained.bank is not None and f(model_cfg) for f in (bank_enabled, bank_needed))
     for length in lengths:
         s = infer.sample_transitions(model_cfg, trained.state, bench, N_PAST, length, NUM_SAMPLES, bank=trained.bank,
@@ -79,6 +83,12 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
             rows.append({"method": NETWORK_ALONE, "frames": length, "MMPE": None,
                          **transition_metrics(bench, N_PAST, length, s["q"], s["r"], x_mean, x_std)})
             s = dict(s, **dict(zip(("q", "r"), blend(s["q"], s["r"], q, r, model_cfg.bank_weight))))
+        if gated:          # the network before the gate, then the gated samples (models/ood.py)
+            rows.append({"method": UNGATED, "frames": length, "MMPE": None,
+                         **transition_metrics(bench, N_PAST, length, s["q"], s["r"], x_mean, x_std)})
+            q, r, score, _ = gate_windows(trained.gate, bench, N_PAST - 1, N_PAST + length, s["q"], s["r"], fa)
+            s = dict(s, q=q, r=r)
+        per_window += window_ratios(bench, N_PAST, length, s["q"], s["r"], score if gated else None)
         if length == max(lengths):
             longest = s
         row = {"method": "S-CVAE", "frames": length,
@@ -86,7 +96,7 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
         row["MMPE"] = (float(metrics.mmpe(s["mid_f"][:, :, None], s["mid_b"][:, :, None], mid_index=0))
                        if "mid_f" in s else None)
         rows.append(row)
-    order = {"Slerp": 0, "S-CVAE": 1, NETWORK_ALONE: 2}
+    order = {"Slerp": 0, "S-CVAE": 1, NETWORK_ALONE: 2, UNGATED: 3}
     rows.sort(key=lambda r: (r["frames"], order.get(r["method"], 3)))
     cols = tuple(TABLE_COLUMNS) + ("MMPE",)
     variant = f"S-CVAE ({run_.preset})"
@@ -99,12 +109,19 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
     md += "\n\n" + markdown_table(official, ("L2Q", "L2P", "NPSS"),
                                   f"S-CVAE, official LaFAN1 protocol (10 past frames; the model uses them {vel} the "
                                   f"past frame's root velocity; metrics averaged over {NUM_SAMPLES} samples)")
+    wc = worst_case_rows(per_window, "per_window", data_name(source), "scvae", "Slerp", "test")
+    wc += validation_worst_case(run_, trained)
+    md += "\n\n" + worst_case_markdown([r for r in wc if r["split"] == "test"],
+                                        f"S-CVAE per window, test windows{' (gated)' if gated else ''}")
+    if any(r["split"] != "test" for r in wc):
+        md += "\n\n" + worst_case_markdown([r for r in wc if r["split"] != "test"],
+                                            "S-CVAE per window, validation subjects (the gate's calibration windows)")
     os.makedirs(results_dir, exist_ok=True)
     plot = error_over_time_plot(bench, max(lengths), longest, "S-CVAE",
                                 os.path.join(results_dir, "scvae_error_over_time.png"))
     md += (f"\n\n{note}APD/ADE/SLDE in m, FootSlide in cm/frame, MMPE in cm. Error along the {max(lengths)}-frame "
            f"transition: `{os.path.basename(plot)}`. Wall {time.time() - t0:.0f} s.")
-    data = "lafan1" if is_lafan1(source) else source if source in ("embedded", "cmu") else "bvh"
+    data = data_name(source)
     records = (flat_rows([r for r in rows if r["method"] == "Slerp"], "table1", data, model="slerp")
                + flat_rows([r for r in rows if r["method"] == variant], "table1", data, model="scvae",
                            variant=run_.preset)
@@ -117,6 +134,10 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
                              variant=f"{run_.preset}, network alone")
         name = bank_alone_name(model_cfg)
         records += flat_rows([r for r in rs if r["method"] == name], table, data, model="bank", variant=name)
+    for table, rs in (("table1", rows),) if gated else ():
+        records += flat_rows([r for r in rs if r["method"] == UNGATED], table, data, model="scvae",
+                             variant=f"{run_.preset}, network alone (no gate)")
+    records += wc
     return {"markdown": md, "rows": records, "table": rows, "step": trained.step, "source": source,
             "windows": len(bench), "plots": [plot]}
 
@@ -124,6 +145,39 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
 OFFICIAL_LENGTHS = (5, 15, 30, 45)
 VELOCITY_BASELINE = "Slerp + start velocity (Hermite)"
 NETWORK_ALONE = "S-CVAE, network alone (no bank)"
+UNGATED = "S-CVAE, network alone (no out-of-distribution gate)"
+
+
+def data_name(source) -> str:
+    from inbetween_jax.data.datasets import is_lafan1
+    return "lafan1" if is_lafan1(source) else source if source in ("embedded", "cmu") else "bvh"
+
+
+def window_ratios(windows, n_past: int, n_trans: int, q, r, scores=None) -> list:
+    """Per-window records (:mod:`inbetween_jax.evaluation.worst_case`): mean joint position error of the samples
+    q (S, B, L, J, 4), r (S, B, L, 3) over Slerp's, per window (``score``: the gate's, when given)."""
+    from inbetween_jax.baselines import interpolate_transition
+    sq, sr = interpolate_transition(windows.local_quats.astype(np.float64), windows.root_pos.astype(np.float64),
+                                    n_past, n_trans)
+    base = per_frame_error(windows, n_past, n_trans, sq[None], sr[None])[0].mean(-1)
+    ours = per_frame_error(windows, n_past, n_trans, q, r).mean((0, 2))
+    return [{"name": windows.seq_names[i], "frames": n_trans, "ratio": float(ours[i] / max(base[i], 1e-6)),
+             **({} if scores is None else {"score": float(scores[i])})} for i in range(len(windows))]
+
+
+def validation_worst_case(run_, trained) -> list:
+    """Per-window rows on the validation subjects from the run's ``ood_calibration.json`` (the gate's
+    calibration windows, scored at the gate's weights), or [] when the run has none."""
+    import json
+    from inbetween_jax.evaluation.worst_case import worst_case_rows
+    from inbetween_jax.models.ood import CALIBRATION_FILE, gated_records
+    path = os.path.join(run_.run_dir, CALIBRATION_FILE)
+    if trained.gate is None or not os.path.exists(path):
+        return []
+    with open(path) as f:
+        cal = json.load(f)
+    return worst_case_rows(gated_records(cal, trained.gate[1]), "per_window", cal.get("source", "cmu"), "scvae",
+                           "Slerp", "validation subjects")
 
 
 def bank_alone_name(model_cfg) -> str:
@@ -246,3 +300,4 @@ def val_score(run, source: str) -> float:
                                      bank=trained.bank, blend_bank=False)
         errs.append(transition_metrics(val, N_PAST, n, s["q"], s["r"], x_mean, x_std)["L2P"])
     return float(np.mean(errs))
+

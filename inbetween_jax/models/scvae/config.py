@@ -104,6 +104,8 @@ class ModelConfig:
     bank_weight: float = 0.0       # inference: its weight (0: the network alone; 1: the bank alone)
     bank_tau: float = 0.0          # inference: > 0 weights the k by exp(-(d - d1) / (tau d1)); 0: uniform
     bank_base: bool = False        # residual base = the bank's k-nearest transition (bank_k, bank_tau), not Slerp
+    ood_gate: bool = False         # inference: blend toward Slerp / lerp as the keyframes leave the training motion
+                                   # (the run folder's ood.npz, models/ood.py; on in the shipped weights)
 
     @property
     def uses_past_frame(self) -> bool:

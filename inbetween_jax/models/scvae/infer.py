@@ -39,6 +39,7 @@ class Trained:
     skeleton: object
     extra: dict
     bank: TransitionBank | None = None      # transition bank (``bank.npz`` in the run folder) when the config uses one
+    gate: tuple | None = None               # (ContextBank, Gate) of ``ood.npz`` when ``model.ood_gate`` is on
 
     @property
     def params(self) -> dict:
@@ -73,8 +74,15 @@ def load(run) -> Trained:
         raise RunError(f"{run.run_dir}: run.json records no skeleton (num_joints unknown)")
     init_fn = make_init_fn(cfg, stats_like(int(num_joints)), int(num_joints))
     state = restore_state(run, jax.eval_shape(init_fn, jax.random.key(0)))
+    gate = None
+    if cfg.model.ood_gate:
+        from inbetween_jax.models.ood import load_gate
+        gate = load_gate(run.run_dir)
+        if gate is None:
+            raise RunError(f"{run.run_dir}: model.ood_gate is on but the folder holds no ood.npz (calibrate it with "
+                           "`python experiments/calibrate_gate.py scvae RUN_DIR`)")
     return Trained(cfg, state, int(run.step), skeleton, dict(run.extra, num_joints=int(num_joints)),
-                   load_bank(run.run_dir, cfg.model, int(num_joints)))
+                   load_bank(run.run_dir, cfg.model, int(num_joints)), gate)
 
 
 def load_bank(run_dir: str, model_cfg, num_joints: int) -> TransitionBank | None:
@@ -122,7 +130,7 @@ def _sample_chunk(params, stats, start, target, keys, cfg, max_length, parents):
 
 def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_samples: int, seed: int = 0,
                        chunk: int = 128, velocity: bool = False, bank: TransitionBank | None = None,
-                       blend_bank: bool = True) -> dict:
+                       blend_bank: bool = True, gate: tuple | None = None, forward_axis=None) -> dict:
     """Transitions between frame ``n_past - 1`` and frame ``n_past + n_trans`` of every window.
     ``velocity`` (models trained with ``start_velocity`` / ``base_velocity``, protocols with more than one past
     frame): the start keyframe carries frame ``n_past - 2`` (root displacement ``v``, local quaternions ``qp``).
@@ -130,6 +138,9 @@ def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_sampl
     transition (:func:`.bank.blend`; mid_f / mid_b stay the network's; ``blend_bank=False``: not blended); with
     ``cfg.bank_base`` that transition is also the network's residual base (:func:`.bank.knn_base_path`).  The
     bank is searched once; its transition is returned too (``bank_q`` (B, n_trans, J, 4), ``bank_r``).
+    ``gate`` ((ContextBank, Gate), with ``cfg.ood_gate``): the samples are then moved toward Slerp / lerp by the
+    out-of-distribution gate (:mod:`.gate`; ``forward_axis``: the root's facing axis), and ``ood_score`` /
+    ``gate_weight`` (B,) are returned.
 
     cfg: ModelConfig; state: train state (``params``, ``stats``).
     Returns q (S, B, n_trans, J, 4), r (S, B, n_trans, 3) and, for the bi-directional model, mid_f / mid_b
@@ -163,6 +174,10 @@ def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_sampl
         out["bank_q"], out["bank_r"] = kq, kr
         if bank_enabled(cfg) and blend_bank:
             out["q"], out["r"] = blend(out["q"], out["r"], kq, kr, cfg.bank_weight)
+    if gate is not None and cfg.ood_gate:
+        from inbetween_jax.models.scvae.gate import gate_windows
+        out["q"], out["r"], out["ood_score"], out["gate_weight"] = gate_windows(gate, windows, k0, k1, out["q"],
+                                                                               out["r"], forward_axis)
     return out
 
 
@@ -247,9 +262,18 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
                                    m.bank_tau)
         mid_q, mid_r = blend(q[:, None, 1:-1], r[:, None, 1:-1], kq, kr, m.bank_weight)
         q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
+    gated = {}
+    if trained.gate is not None and m.ood_gate:   # toward Slerp / lerp as the keyframes leave the training motion
+        from inbetween_jax.models.scvae.gate import gate_blend, keyframe_context, slerp_base
+        a = (qs[None], roots[:1], qe[None], roots[1:])
+        score = trained.gate[0].score(keyframe_context(*a, frames, skeleton, fa))
+        weight = trained.gate[1].weight(score)
+        mid_q, mid_r = gate_blend(q[:, None, 1:-1], r[:, None, 1:-1], *slerp_base(*a, frames), weight)
+        q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
+        gated = {"ood_score": float(score[0]), "gate_weight": float(weight[0])}
     q[:, 0], r[:, 0], q[:, -1], r[:, -1] = qs, roots[0], qe, roots[1]                 # exact keyframes
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    return {"q": quat_fix_sign_np(q, axis=1), "r": r}
+    return {"q": quat_fix_sign_np(q, axis=1), "r": r, **gated}
 
 
 def _past_frame(start: dict, yaw, q0) -> dict:
@@ -325,12 +349,16 @@ def infill(args, run):
         notes.append(f"the start keyframe is the first frame of {sp}: no motion to continue (plain interpolation base)")
     res = infill_between(trained, skel, start, end, args.frames, args.samples, args.seed, fa)
     finite_or_fail(run.run_dir, res["q"], res["r"])
+    gated = {k: res[k] for k in ("ood_score", "gate_weight") if k in res}
+    if gated:
+        from inbetween_jax.models.ood import gate_note
+        notes.append(gate_note(gated["ood_score"], gated["gate_weight"], "Slerp / lerp"))
     t = args.frames + 2
     w = (np.arange(t) / (t - 1))[:, None, None]
     base_pos = (1 - w) * sm.local_pos[sf] + w * em.local_pos[ef]       # joints with position channels: lerp
     keys = None
     if ps.match is not None:        # the user's full rig: keyframes at both ends, the rest filled by expand
-        idx = np.r_[sf, np.zeros(t - 2, int), ef]
+        idx = np.full(t, sf)          # frame ef is the end file's: taken from pe.full below, never from ps.full
         keys = dataclasses.replace(ps.full, local_quats=ps.full.local_quats[idx], local_pos=ps.full.local_pos[idx])
         keys.local_quats[-1], keys.local_pos[-1] = pe.full.local_quats[ef], pe.full.local_pos[ef]
     samples = []
@@ -341,4 +369,7 @@ def infill(args, run):
         samples.append((name, [out if keys is None else expand(out, keys, ps.match)], None))
     return InfillResult(samples=samples, summary={**keyframes, "frames": args.frames,
                                                   "samples": args.samples, "step": trained.step,
-                                                  "past_frame": past}, notes=notes)
+                                                  "past_frame": past, **gated,
+                                                  "samples_ood": [dict(gated, sample=n) for n in
+                                                                  sample_names(args.samples)] if gated else []},
+                        notes=notes)

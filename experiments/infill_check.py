@@ -1,0 +1,66 @@
+"""Score the shipped (or given) S-CVAE and CAE through `inbetween infill`'s own path on raw BVH files (any rig and
+rate: each file is matched to the run's joints by name and resampled, as infill does), against the plain
+baselines computed independently here: Slerp / lerp of the keyframes (S-CVAE) and straight-line interpolation of
+the global joint positions across the gap (CAE).  Gaps every ``--stride`` frames; per-gap ratios summarised
+(median, 90th percentile, maximum, share > 1.10x) overall and per activity group.
+
+    python experiments/infill_check.py FILE.bvh ... [--scvae-frames 20,30] [--cae-seconds 1,2]
+"""
+import argparse
+import os
+
+import numpy as np
+
+from inbetween_jax.data import read_bvh
+from inbetween_jax.data.activities import activity_group
+from inbetween_jax.data.retarget import prepare
+from inbetween_jax.evaluation.worst_case import summarise
+from inbetween_jax.geometry import forward_kinematics
+from inbetween_jax.models.cae.infer import load as load_cae, process_motion
+from inbetween_jax.models.scvae import infer as scvae
+from inbetween_jax.models.scvae.gate import slerp_base
+from inbetween_jax.shipped import shipped_run
+
+p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+p.add_argument("files", nargs="+")
+p.add_argument("--scvae-frames", default="20,30")
+p.add_argument("--cae-seconds", default="1,2")
+p.add_argument("--stride", type=int, default=45)
+a = p.parse_args()
+srun, crun = shipped_run("scvae"), shipped_run("cae")
+sm, cm = scvae.load(srun), load_cae(crun)
+fa = tuple(sm.extra.get("forward_axis") or sm.skeleton.forward_axis())
+fk = lambda m, q, r: forward_kinematics(q, np.concatenate([r[..., None, :], np.broadcast_to(  # noqa: E731
+    m.local_pos[0, 1:], r.shape[:-1] + m.local_pos[0, 1:].shape)], -2), m.skeleton.parents)[1]
+res = {"scvae": [], "cae": []}
+for path in a.files:
+    m = prepare(read_bvh(path), path, sm.skeleton, srun.fps).motion
+    gp = fk(m, m.local_quats, m.root_pos)
+    group = activity_group(path)
+    for n in [int(x) for x in a.scvae_frames.split(",")]:
+        for k0 in range(1, m.num_frames - n - 2, a.stride):
+            k1 = k0 + n + 1
+            s = {"q": m.local_quats[k0], "r": m.root_pos[k0], "c": np.zeros(4)}
+            e = {"q": m.local_quats[k1], "r": m.root_pos[k1], "c": np.zeros(4)}
+            out = scvae.infill_between(sm, m.skeleton, s, e, n, 10, 0, fa)
+            bq, br = slerp_base(m.local_quats[k0][None], m.root_pos[k0][None], m.local_quats[k1][None],
+                                m.root_pos[k1][None], n)
+            err = np.linalg.norm(fk(m, out["q"][:, 1:-1], out["r"][:, 1:-1]) - gp[k0 + 1:k1], axis=-1).mean()
+            base = np.linalg.norm(fk(m, bq[0], br[0]) - gp[k0 + 1:k1], axis=-1).mean()
+            res["scvae"].append((group, n, err / base, out.get("gate_weight", 1.0)))
+    cm_m = prepare(read_bvh(path), path, cm.skeleton, crun.fps).motion
+    for sec in [float(x) for x in a.cae_seconds.split(",")]:
+        g = int(round(sec * crun.fps))
+        for lo in range(10, cm_m.num_frames - g - 10, a.stride):
+            pos = process_motion(cm, cm_m, [(lo, lo + g)])["positions"]
+            w = (np.arange(1, g + 1) / (g + 1))[:, None, None]
+            lin = gp[lo - 1] + w * (gp[lo + g] - gp[lo - 1])
+            err = np.linalg.norm(pos[lo:lo + g] - gp[lo:lo + g], axis=-1).mean()
+            res["cae"].append((group, g, err / np.linalg.norm(lin - gp[lo:lo + g], axis=-1).mean(), None))
+for model, rows in res.items():
+    print(f"{model} ({len(rows)} gaps of {os.path.basename(a.files[0])} ...):")
+    for grp in ["all"] + sorted({r[0] for r in rows}):
+        s = summarise([r[2] for r in rows if grp == "all" or r[0] == grp])
+        if s["windows"]:
+            print(f"  {grp:12s} n={s['windows']:3d} mean {s['mean']:.3f} median {s['median']:.3f} p90 {s['p90']:.3f} "
+                  f"max {s['max']:.3f} share>1.10 {100 * s['share_worse_10pct']:.0f} %")

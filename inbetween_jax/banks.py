@@ -1,0 +1,89 @@
+"""Write a run's motion bank and turn it on: an interaction run's (:mod:`inbetween_jax.models.interaction.bank`)
+or an S-CVAE run's (:mod:`inbetween_jax.models.scvae.bank`).
+
+    write_bank(run_dir, source=None, split="fit", mirror=False, switches=()) -> dict
+
+builds the bank from the ``split`` motions (``fit``: the training files or takes without the validation ones,
+so bank settings chosen on the validation split never saw it; the test files are never in it) of ``source``
+(default: the run's own data source), writes ``RUN_DIR/bank.npz`` and applies the ``switches`` (``KEY=VALUE``
+inference switches of the model's bank: its ``SWITCHES``) to ``RUN_DIR/run.json``.  ``mirror`` (S-CVAE banks):
+the bank holds each motion's left-right mirror image too.  RUN_DIR is a training run or a shipped weights
+folder.  Front end: ``experiments/build_bank.py``; the probes build the same banks in memory
+(:func:`interaction_bank`, :func:`scvae_bank`).
+"""
+from __future__ import annotations
+
+import importlib
+import json
+import os
+
+import numpy as np
+
+from inbetween_jax.errors import UserError
+from inbetween_jax.train.run import RUN_FILE, RunError, load_run
+
+__all__ = ["BUILDERS", "interaction_bank", "scvae_bank", "write_bank"]
+
+
+def interaction_bank(run, source: str, split: str = "fit", mirror: bool = False):
+    """The :class:`~inbetween_jax.models.interaction.bank.MotionBank` of the ``split`` takes of ``source``."""
+    from inbetween_jax.models.interaction.bank import MotionBank
+    from inbetween_jax.models.interaction.config import Config
+    from inbetween_jax.models.interaction.data import load_pairs, split_pairs
+    from inbetween_jax.train.config import config_from_dict
+    cfg = config_from_dict(Config, run.config)
+    pairs = split_pairs(load_pairs(source, cfg.data.pair_distance), split, cfg.data.split)
+    J = int(run.extra["num_joints"])
+    if pairs and pairs[0].feats.shape[2] != J:
+        raise UserError(f"{source}: {pairs[0].feats.shape[2]} joints, the run has {J}")
+    return MotionBank.from_pairs(pairs, cfg.data.pos_scale)
+
+
+def scvae_bank(run, source: str, split: str = "fit", mirror: bool = False):
+    """The :class:`~inbetween_jax.models.scvae.bank.TransitionBank` of the ``split`` motions of ``source`` (``run``:
+    its joint count is checked; None skips the check)."""
+    from inbetween_jax.data import load_motions
+    from inbetween_jax.data.datasets import window_settings
+    from inbetween_jax.models.scvae.bank import TransitionBank
+    motions = load_motions(source, split)
+    J = int(run.extra["num_joints"]) if run is not None else None
+    if J is not None and motions and motions[0].skeleton.num_joints != J:
+        raise UserError(f"{source}: {motions[0].skeleton.num_joints} joints, the run has {J}")
+    fa = window_settings(source, "train")["forward_axis"] or motions[0].skeleton.forward_axis()
+    return TransitionBank.from_motions(motions, np.asarray(fa, np.float64), mirror=mirror)
+
+
+BUILDERS = {"interaction": interaction_bank, "scvae": scvae_bank}     # model -> its bank, from the run's data
+
+
+def write_bank(run_dir: str, source: str | None = None, split: str = "fit", mirror: bool = False,
+               switches=()) -> dict:
+    """Build and write ``run_dir``'s bank, record it (and ``switches``) in its ``run.json``.
+
+    Returns ``{"path", "bank", "bytes"}``.  Raises RunError / UserError (one line) for a folder of another model,
+    an unknown switch, ``mirror`` on a non-S-CVAE run or data on another skeleton; nothing is written then."""
+    from inbetween_jax.shipped import _with_overrides
+    run = load_run(run_dir, need_checkpoint=False)
+    if run.model not in BUILDERS:
+        raise RunError(f"{run_dir}: holds a {run.model} run; banks exist for {', '.join(BUILDERS)} runs")
+    module = importlib.import_module(f"inbetween_jax.models.{run.model}.bank")
+    bad = [s for s in switches if s.split("=", 1)[0] not in module.SWITCHES]
+    if bad:
+        raise RunError(f"--set {bad[0]}: not a bank switch (choose {', '.join(module.SWITCHES)})")
+    if mirror and run.model != "scvae":
+        raise RunError(f"--mirror: S-CVAE banks only ({run_dir} holds a {run.model} run)")
+    source = source or run.data.get("source")
+    bank = BUILDERS[run.model](run, source, split, mirror)
+    path = os.path.join(run_dir, RUN_FILE)
+    with open(path) as f:
+        meta = json.load(f)
+    if switches:
+        meta["config"] = _with_overrides(run.model, meta["config"], list(switches))
+    meta["bank"] = {"source": source, "split": split, "mirror": mirror, "takes": list(bank.names),
+                    "frames": bank.num_frames, "switches": list(switches) or meta.get("bank", {}).get("switches", [])}
+    bank_path = os.path.join(run_dir, module.BANK_FILE)
+    bank.save(bank_path)
+    with open(path + ".tmp", "w") as f:
+        json.dump(meta, f, indent=1)
+    os.replace(path + ".tmp", path)
+    return {"path": bank_path, "bank": bank, "bytes": os.path.getsize(bank_path)}

@@ -1,0 +1,78 @@
+"""Calibration of the CAE's out-of-distribution gate (:mod:`.gate`, :mod:`inbetween_jax.models.ood`) on the
+validation split of the run's training data, and the bench's per-window (worst-case) rows."""
+from __future__ import annotations
+
+import numpy as np
+
+
+def per_window_rows(positions, names, methods, data, runs, models) -> list:
+    """Worst-case rows (:mod:`inbetween_jax.evaluation.worst_case`) of every learned method: each clip's error
+    over every gap position as a ratio to the Hermite fill's and to linear fill's, on the test clips; plus the
+    validation subjects from a gated run's ``ood_calibration.json`` (its calibration gaps at the gate's
+    weights, ratio to the run's pre-fill)."""
+    import json
+    import os
+    from inbetween_jax.evaluation.worst_case import worst_case_rows
+    from inbetween_jax.models.ood import CALIBRATION_FILE, gated_records
+    out = []
+    for m in methods:
+        if m in ("linear", "hermite"):
+            continue
+        for base, label in (("hermite", "the Hermite fill"), ("linear", "linear fill")):
+            recs = [{"name": n, "frames": positions[m][s]["frames"], "ratio": float(o / max(b, 1e-6))}
+                    for s in positions[m] for n, o, b in zip(names, positions[m][s]["per_clip"],
+                                                             positions[base][s]["per_clip"])]
+            out += worst_case_rows(recs, "per_window", data, "cae", label, "test")
+        path = os.path.join(runs[m].run_dir, CALIBRATION_FILE)
+        if getattr(models[m], "gate", None) is not None and os.path.exists(path):
+            with open(path) as f:
+                cal = json.load(f)
+            out += worst_case_rows(gated_records(cal, models[m].gate[1]), "per_window", cal.get("source", "cmu"),
+                                   "cae", "the Hermite fill", "validation subjects")
+    return out
+
+
+def calibrate(run, source: str, seconds=(1, 2), clip: int = 96, positions=(-12, 0, 12)) -> dict:
+    """Build the bank from the run's training split and choose the gate on its validation split (never the
+    test clips): gaps of ``seconds`` centred in each validation clip and shifted by ``positions`` frames.
+    Returns ``{"bank", "gate", "summary", "records"}``; a record per clip and gap (``name`` the clip index,
+    ``frames``, ``score``, ``ratios_at``: body-frame joint error / the pre-fill's at each blend weight)."""
+    from inbetween_jax.data import load_motions
+    from inbetween_jax.evaluation import infilling as proto
+    from inbetween_jax.models.cae.features import body_positions
+    from inbetween_jax.data.datasets import val_split_of
+    from inbetween_jax.models.cae.gate import base_fill, gap_context, training_contexts
+    from inbetween_jax.models.cae.infer import fill, load
+    from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
+    from inbetween_jax.models.cae.train import load_data
+    from inbetween_jax.models.ood import BLEND_WEIGHTS, build_bank, calibrate_gate
+    model = load(run)
+    split = run.config.get("train", {}).get("split", "fit")
+    bank = build_bank(training_contexts(load_data(model.cfg, source, split).bank))
+    motions = load_motions(source, val_split_of(split))
+    x = proto.test_clips(motions, model.normalizer, clip, clip // 2)
+    names = [m.source for m in motions for s in range(0, m.num_frames - clip + 1, clip // 2)]
+    truth = body_positions(x, model.normalizer, model.num_joints)
+    records = []
+    for sec in seconds:
+        g = int(round(sec * float(motions[0].fps)))
+        for shift in positions:
+            a = (clip - g) // 2 + shift
+            if a < 8 or a + g > clip - 8:
+                continue
+            fm = np.broadcast_to(gap_frames(clip, [(a, a + g)]), (len(x), clip))
+            mask = frame_mask_image(fm, model.num_joints)
+            learned, base = fill(model, x, mask, gate=False), base_fill(model, x, mask)
+
+            def err(y):
+                d = np.linalg.norm(body_positions(y, model.normalizer, model.num_joints) - truth, axis=-1)
+                return d[:, a:a + g].mean((1, 2))
+            b_err = np.maximum(err(base), 1e-6)
+            at = np.stack([err(base + w * (learned - base)) for w in BLEND_WEIGHTS], 1) / b_err[:, None]
+            score = bank.score(gap_context(x, a, a + g))
+            records += [{"name": names[i], "frames": g, "score": float(score[i]), "ratios_at": at[i].tolist(),
+                         "base_cm": float(b_err[i])} for i in range(len(x))]
+    from inbetween_jax.data.activities import activity_group
+    gate, summary = calibrate_gate([r["score"] for r in records], [r["ratios_at"] for r in records],
+                                   groups=[f"{activity_group(r['name'])}/{r['frames']}" for r in records])
+    return {"bank": bank, "gate": gate, "summary": dict(summary, lo=gate.lo, hi=gate.hi), "records": records}

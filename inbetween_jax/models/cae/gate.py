@@ -1,0 +1,73 @@
+"""The CAE's out-of-distribution gate (:mod:`inbetween_jax.models.ood`): a score per gap and the blend of the
+network's fill toward its Hermite pre-fill as the score rises.
+
+Context of a gap ``[a, b)`` in a normalised clip image (D, T): the feature columns (the CAE's own input space:
+body-frame joint positions and root velocities) of the known frames ``a - 1, a - 4, a - 8`` before it and ``b,
+b + 3, b + 7`` after it (clipped into the clip), plus the gap's length / 30.  The bank holds the same for random
+gaps in the training clips.  ``ood.npz`` in the run (or shipped) folder holds bank and gate; ``model.ood_gate``
+switches the blend on.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["CONTEXT_FRAMES", "gap_context", "training_contexts", "base_fill", "gate_clips"]
+
+CONTEXT_FRAMES = (-1, -4, -8, 0, 3, 7)     # offsets from a (negative) and from b (the rest)
+
+
+def gap_context(x_norm, a, b) -> np.ndarray:
+    """(N, 6 D + 1) contexts of gaps ``[a, b)`` (ints or (N,) arrays) in clips x_norm (N, D, T)."""
+    x = np.asarray(x_norm, np.float32)
+    n, _, t = x.shape
+    a = np.broadcast_to(np.asarray(a), (n,))
+    b = np.broadcast_to(np.asarray(b), (n,))
+    cols = [np.clip(np.where(np.asarray(o) < 0, a + o, b + o), 0, t - 1) for o in CONTEXT_FRAMES]
+    i = np.arange(n)
+    feats = [x[i, :, c] for c in cols]                                          # each (N, D)
+    return np.concatenate(feats + [((b - a) / 30.0)[:, None]], axis=1)
+
+
+def training_contexts(bank, count: int = 4000, gaps=(15, 120), margin: int = 8, seed: int = 0) -> np.ndarray:
+    """Contexts of ``count`` random gaps (length uniform in ``gaps``) in random clips of a
+    :class:`~inbetween_jax.models.cae.features.ClipBank`."""
+    rng = np.random.default_rng(seed)
+    t = bank.clip_length
+    out = []
+    for lo in range(0, count, 512):
+        m = min(512, count - lo)
+        clips = bank.clips(rng.integers(0, len(bank.starts), m))
+        g = rng.integers(gaps[0], min(gaps[1], t - 2 * margin) + 1, m)
+        a = margin + (rng.random(m) * (t - 2 * margin - g)).astype(int)
+        out.append(gap_context(clips, a, a + g))
+    return np.concatenate(out)
+
+
+def base_fill(model, x_norm, mask) -> np.ndarray:
+    """The run's non-learned pre-fill (``model.fill``: the limited cubic Hermite or the straight line) of the
+    masked clips (N, D, T)."""
+    from inbetween_jax.baselines import hermite_fill, linear_fill
+    f = hermite_fill if model.cfg.model.fill == "hermite" else linear_fill
+    x = np.asarray(x_norm, np.float32)
+    return np.asarray(f(x * mask, mask), np.float32)
+
+
+def gate_clips(model, x_masked, mask, y):
+    """The gate on every gap of clips x_masked (N, D, T) (the masked input) with fills y (N, D, T): each gap's
+    columns become ``base + w (y - base)``.  Returns (gated y, per clip a list of ``{"gap": [a, b],
+    "ood_score", "gate_weight"}``).  A clip without a whole missing frame is left as it is."""
+    from inbetween_jax.models.cae.masks import gap_ranges
+    bank, gate = model.gate
+    m = np.asarray(mask, np.float32)
+    frames = (np.broadcast_to(m, np.shape(y)).max(axis=1) > 0.5).astype(np.float32)      # (N, T) 1 = some known
+    base = base_fill(model, x_masked, m)
+    out, info = np.array(y, np.float32, copy=True), []
+    for i in range(len(out)):
+        rows = []
+        for a, b in gap_ranges(frames[i]):
+            score = float(bank.score(gap_context(x_masked[i:i + 1], a, b))[0])
+            w = float(gate.weight(score))
+            out[i, :, a:b] = base[i, :, a:b] + w * (out[i, :, a:b] - base[i, :, a:b])
+            rows.append({"gap": [int(a), int(b)], "ood_score": score, "gate_weight": w})
+        info.append(rows)
+    return out, info

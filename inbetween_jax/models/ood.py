@@ -1,0 +1,230 @@
+"""Knowing when a model does not know: an out-of-distribution score per window and a gate toward the base.
+
+A learned in-between is only as good as the training motion near it.  Every model describes the context it is
+given (its keyframes, or the known frames around a gap) as a fixed-length vector, and a :class:`ContextBank`
+holds the same description of the training windows, projected on their principal components.  The score of a
+context is the mean distance to its ``k`` nearest training contexts divided by the training contexts' own
+median leave-one-out k-NN distance: about 1 inside the training motion, larger the farther a context lies from
+it.  A :class:`Gate` turns the score into the weight of the learned fill,
+
+    fill = base + w(score) (learned - base),   w = clip((hi - score) / (hi - lo), 0, 1),
+
+so a context as familiar as the training motion (score <= lo) keeps the learned fill and one far from it
+(score >= hi) falls back to the model's non-learned base (Slerp / lerp for the S-CVAE, the Hermite fill for the
+CAE).  ``lo`` / ``hi`` are chosen on the validation subjects by :func:`calibrate_gate` from each window's error
+at a few blend weights; nothing here looks at test windows.
+
+NumPy only (host side); shapes: B contexts of D numbers.
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+
+import numpy as np
+
+__all__ = ["ContextBank", "TravelScore", "Gate", "build_bank", "calibrate_gate", "gated_ratio", "BLEND_WEIGHTS", "OOD_FILE", "gate_note", "save_gate", "load_gate", "gated_records", "calibrate_run", "CALIBRATION_FILE"]
+
+OOD_FILE = "ood.npz"                              # the bank and gate in a run folder / shipped weights folder
+BLEND_WEIGHTS = (0.0, 0.25, 0.5, 0.75, 1.0)       # weights of the learned fill at which calibration scores windows
+
+
+@dataclasses.dataclass
+class ContextBank:
+    """Training contexts, standardised and projected: ``mean`` / ``scale`` (D,), ``basis`` (D, P),
+    ``codes`` (N, P) float32, ``k`` neighbours, ``ref`` the training contexts' median leave-one-out k-NN distance."""
+    mean: np.ndarray
+    scale: np.ndarray
+    basis: np.ndarray
+    codes: np.ndarray
+    k: int
+    ref: float
+
+    def project(self, desc) -> np.ndarray:
+        """(B, D) contexts -> (B, P) codes."""
+        d = np.asarray(desc, np.float64)
+        if d.ndim != 2 or d.shape[1] != self.mean.shape[0]:
+            raise ValueError(f"contexts of shape {d.shape}: this bank holds {self.mean.shape[0]}-number contexts")
+        return ((d - self.mean) / self.scale) @ self.basis
+
+    def knn_distance(self, codes, exclude_self: bool = False) -> np.ndarray:
+        """(B, P) codes -> (B,) mean Euclidean distance to the k nearest bank codes (chunks of 512)."""
+        bank = self.codes.astype(np.float64)
+        b2 = np.sum(bank ** 2, axis=1)
+        out = []
+        for lo in range(0, len(codes), 512):
+            c = np.asarray(codes[lo:lo + 512], np.float64)
+            d2 = np.maximum(np.sum(c ** 2, 1)[:, None] - 2 * c @ bank.T + b2[None], 0.0)
+            kk = self.k + 1 if exclude_self else self.k
+            part = np.sort(np.partition(d2, kk - 1, axis=1)[:, :kk], axis=1)
+            out.append(np.sqrt(part[:, 1:] if exclude_self else part).mean(1))
+        return np.concatenate(out) if out else np.zeros(0)
+
+    def score(self, desc) -> np.ndarray:
+        """(B, D) contexts -> (B,) out-of-distribution score (about 1 for training-like contexts)."""
+        return self.knn_distance(self.project(desc)) / self.ref
+
+    def arrays(self, prefix: str = "bank_") -> dict:
+        return {f"{prefix}{k}": np.asarray(v) for k, v in dataclasses.asdict(self).items()}
+
+    @classmethod
+    def from_arrays(cls, arrays, prefix: str = "bank_") -> "ContextBank":
+        a = {f.name: arrays[f"{prefix}{f.name}"] for f in dataclasses.fields(cls)}
+        return cls(a["mean"], a["scale"], a["basis"], a["codes"], int(a["k"]), float(a["ref"]))
+
+
+@dataclasses.dataclass
+class TravelScore:
+    """A score from how far the keyframes say the character travels: ``1 / (1 + speed / c)`` with ``speed`` the
+    root's floor distance between the two keyframes per generated frame (data units per frame), read from a
+    keyframe context whose first ``2 J 3`` numbers are both poses' FK positions (root first) and whose last is
+    the number of frames / 30 (:func:`inbetween_jax.models.scvae.gate.keyframe_context`).  1 for keyframes in
+    place, 0.5 at ``c`` per frame, toward 0 for fast travel: the S-CVAE's training motion is mostly locomotion,
+    and on held-out subjects it loses to Slerp exactly where the keyframes imply little travel."""
+    num_joints: int
+    c: float = 1.0
+
+    def score(self, desc) -> np.ndarray:
+        d = np.asarray(desc, np.float64)
+        p = d[:, :-1].reshape(len(d), 2, self.num_joints, 3)
+        speed = np.linalg.norm((p[:, 1, 0] - p[:, 0, 0])[:, [0, 2]], axis=-1) / (d[:, -1] * 30.0 + 1.0)
+        return 1.0 / (1.0 + speed / self.c)
+
+    def arrays(self, prefix: str = "travel_") -> dict:
+        return {f"{prefix}num_joints": np.int64(self.num_joints), f"{prefix}c": np.float64(self.c)}
+
+
+def build_bank(desc, dims: int = 32, k: int = 4, max_items: int = 4000, seed: int = 0) -> ContextBank:
+    """A :class:`ContextBank` of (N, D) training contexts: standardised per number, the first ``dims`` principal
+    components kept (float16-safe codes), at most ``max_items`` contexts (a seeded random subset)."""
+    d = np.asarray(desc, np.float64)
+    if d.ndim != 2 or len(d) < k + 2:
+        raise ValueError(f"need at least {k + 2} training contexts, got shape {d.shape}")
+    if len(d) > max_items:
+        d = d[np.random.default_rng(seed).choice(len(d), max_items, replace=False)]
+    mean, scale = d.mean(0), d.std(0) + 1e-3
+    z = (d - mean) / scale
+    _, _, vt = np.linalg.svd(z - z.mean(0), full_matrices=False)
+    basis = vt[:min(dims, vt.shape[0])].T
+    bank = ContextBank(mean, scale, basis, (z @ basis).astype(np.float32), int(k), 1.0)
+    loo = bank.knn_distance(bank.codes, exclude_self=True)
+    bank.ref = float(np.median(loo)) or 1.0
+    return bank
+
+
+@dataclasses.dataclass(frozen=True)
+class Gate:
+    """Weight of the learned fill: 1 at score <= lo, 0 at score >= hi, linear between (``enabled=False``: 1)."""
+    lo: float
+    hi: float
+    enabled: bool = True
+
+    def weight(self, score) -> np.ndarray:
+        s = np.asarray(score, np.float64)
+        if not self.enabled:
+            return np.ones_like(s)
+        return np.clip((self.hi - s) / max(self.hi - self.lo, 1e-9), 0.0, 1.0)
+
+
+def gated_ratio(ratios_at, weights) -> np.ndarray:
+    """Each window's error ratio at its gate weight, linearly interpolated between the ratios measured at
+    :data:`BLEND_WEIGHTS`.  ratios_at (B, len(BLEND_WEIGHTS)); weights (B,) -> (B,)."""
+    r = np.asarray(ratios_at, np.float64)
+    return np.array([np.interp(w, BLEND_WEIGHTS, row) for w, row in zip(np.asarray(weights, np.float64), r)])
+
+
+def calibrate_gate(scores, ratios_at, p90_max: float = 1.05, worst_max: float = 1.5, groups=None) -> tuple:
+    """Choose ``(lo, hi)`` on validation windows: the lowest mean gated ratio among the thresholds whose 90th
+    percentile is at most ``p90_max``, maximum at most ``worst_max`` and (with ``groups``, a label per window,
+    e.g. activity and length) every group's mean at most 1 (if none qualifies: the lowest 90th percentile).
+    scores (B,); ratios_at (B, len(BLEND_WEIGHTS)): each window's error ratio to its base with the learned fill
+    blended in at each weight.  Returns ``(Gate, summary dict)``."""
+    s = np.asarray(scores, np.float64)
+    labels = np.asarray(["all"] * len(s) if groups is None else [str(g) for g in groups])
+    members = [labels == g for g in np.unique(labels)]
+    qs = np.quantile(s, [0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 1.0])
+    best, best_key = None, None
+    candidates = [(lo, lo * f) for lo in qs for f in (1.0001, 1.1, 1.25, 1.5, 2.0, 3.0)]
+    candidates += [(np.inf, np.inf)]                         # never gate (the learned fill everywhere)
+    for lo, hi in candidates:
+        g = Gate(float(lo), float(hi), enabled=np.isfinite(lo))
+        r = gated_ratio(ratios_at, g.weight(s))
+        p90, worst, mean = np.quantile(r, 0.9), r.max(), r.mean()
+        group_worst = max(float(r[m].mean()) for m in members)
+        ok = p90 <= p90_max and worst <= worst_max and group_worst <= 1.0
+        key = (0 if ok else 1, mean if ok else p90)
+        if best_key is None or key < best_key:
+            best, best_key = (g, {"mean": float(mean), "p90": float(p90), "max": float(worst),
+                                  "worst_group_mean": group_worst,
+                                  "meets_limits": bool(ok), "windows": int(len(s))}), key
+    return best
+
+
+def gate_note(score: float, weight: float, base: str) -> str:
+    """The line the CLI prints about the out-of-distribution gate (:mod:`inbetween_jax.models.ood`)."""
+    if weight < 0.5:
+        return (f"far from the training motion (out-of-distribution score {score:.2f}): the fill falls mostly "
+                f"back to its base, {base} (learned part kept at {weight:.2f})")
+    return f"out-of-distribution score {score:.2f}: learned fill kept at {weight:.2f} over its base ({base})"
+
+
+def save_gate(run_dir: str, bank, gate: Gate, summary: dict | None = None) -> str:
+    """Write ``ood.npz`` (the scorer -- a :class:`ContextBank` or :class:`TravelScore` -- + gate thresholds + the
+    calibration summary's numbers) atomically."""
+    path = os.path.join(run_dir, OOD_FILE)
+    extra = {f"summary_{k}": np.asarray(v) for k, v in (summary or {}).items()
+             if isinstance(v, (int, float, bool, np.floating, np.integer))}
+    tmp = path + ".tmp.npz"
+    np.savez_compressed(tmp, **bank.arrays(), gate_lo=np.float64(gate.lo), gate_hi=np.float64(gate.hi), **extra)
+    os.replace(tmp, path)
+    return path
+
+
+def load_gate(run_dir: str):
+    """``(ContextBank, Gate)`` from ``run_dir/ood.npz``, or None when the folder has none.
+
+    Raises:
+        RunError: the file exists but cannot be read (one line).
+    """
+    from inbetween_jax.train.run import RunError
+    path = os.path.join(run_dir, OOD_FILE)
+    if not os.path.exists(path):
+        return None
+    try:
+        with np.load(path) as z:
+            scorer = (TravelScore(int(z["travel_num_joints"]), float(z["travel_c"])) if "travel_c" in z.files
+                      else ContextBank.from_arrays(z))
+            return scorer, Gate(float(z["gate_lo"]), float(z["gate_hi"]))
+    except (OSError, ValueError, KeyError) as e:
+        raise RunError(f"{path}: not a readable out-of-distribution gate ({type(e).__name__}: {e})") from None
+
+
+CALIBRATION_FILE = "ood_calibration.json"        # per-window scores and ratios behind the gate (figures, tables)
+
+
+def calibrate_run(run_dir: str, source: str, **kwargs) -> dict:
+    """Calibrate the gate of the run in ``run_dir`` on its validation split (``models/<model>/calibrate.py``'s
+    ``calibrate``) and write ``ood.npz`` and ``ood_calibration.json`` (summary + per-window records) into it.
+    Returns the calibration's summary."""
+    import importlib
+    import json
+    from inbetween_jax.train.run import load_run
+    run = load_run(run_dir)
+    res = importlib.import_module(f"inbetween_jax.models.{run.model}.calibrate").calibrate(run, source, **kwargs)
+    save_gate(run_dir, res["bank"], res["gate"], res["summary"])
+    tmp = os.path.join(run_dir, CALIBRATION_FILE + ".tmp")
+    with open(tmp, "w") as f:
+        json.dump({"model": run.model, "step": int(run.step), "source": source, "summary": res["summary"],
+                   "records": res["records"]}, f)
+    os.replace(tmp, os.path.join(run_dir, CALIBRATION_FILE))
+    return res["summary"]
+
+
+def gated_records(calibration: dict, gate) -> list:
+    """Records of a gate's calibration file (``ood_calibration.json``: the validation windows) at the weights
+    ``gate`` gives them (:func:`inbetween_jax.models.ood.gated_ratio`)."""
+    recs = calibration["records"]
+    w = gate.weight([r["score"] for r in recs])
+    ratio = gated_ratio([r["ratios_at"] for r in recs], w)
+    return [{"name": r["name"], "frames": r["frames"], "ratio": float(x), "score": r["score"], "weight": float(wi)}
+            for r, x, wi in zip(recs, ratio, w)]

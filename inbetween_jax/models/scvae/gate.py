@@ -1,0 +1,74 @@
+"""The S-CVAE's out-of-distribution gate (:mod:`inbetween_jax.models.ood`): a score per keyframe pair and the
+blend of the samples toward Slerp / lerp as the score rises.
+
+Context of a transition: the two keyframes turned into the space the S-CVAE samples in
+(:func:`inbetween_jax.data.windows.canonicalize`: centred in XZ between them, the start facing +X), as FK joint
+positions of both poses (2 J 3 numbers, so the root's displacement between the keyframes is in it) plus the
+number of frames between them / 30.  The bank holds the same for keyframe pairs of the training windows, at
+random lengths.  ``ood.npz`` in the run (or shipped) folder holds bank and gate; ``model.ood_gate`` switches the
+blend on.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["keyframe_context", "training_contexts", "gate_blend", "slerp_base"]
+
+
+def keyframe_context(q0, r0, q1, r1, n_frames, skeleton, forward_axis) -> np.ndarray:
+    """(B, 2 J 3 + 1) contexts of B keyframe pairs: q0 / q1 (B, J, 4) local quaternions, r0 / r1 (B, 3) root
+    positions, n_frames (B,) or a number: frames generated between them."""
+    from inbetween_jax.data.windows import canonicalize
+    from inbetween_jax.geometry import forward_kinematics, local_positions
+    q = np.stack([np.asarray(q0, np.float64), np.asarray(q1, np.float64)], 1)
+    r = np.stack([np.asarray(r0, np.float64), np.asarray(r1, np.float64)], 1)
+    cq, cr = canonicalize(q, r, skeleton, 1, np.asarray(forward_axis, np.float64))
+    _, gp = forward_kinematics(cq, local_positions(cr, skeleton.offsets), skeleton.parents)     # (B, 2, J, 3)
+    n = np.broadcast_to(np.asarray(n_frames, np.float64), (len(q),))
+    return np.concatenate([gp.reshape(len(q), -1), n[:, None] / 30.0], axis=1)
+
+
+def training_contexts(windows, forward_axis, lengths=(5, 50), per_window: int = 2, seed: int = 0) -> np.ndarray:
+    """Contexts of ``per_window`` keyframe pairs per training window: a random start frame and a random length
+    in ``lengths`` (inclusive, capped by the window)."""
+    rng = np.random.default_rng(seed)
+    t = windows.window
+    out = []
+    for _ in range(per_window):
+        n = rng.integers(lengths[0], min(lengths[1], t - 2) + 1, len(windows))
+        k0 = (rng.random(len(windows)) * (t - n - 1)).astype(int)
+        k1 = k0 + n + 1
+        i = np.arange(len(windows))
+        out.append(keyframe_context(windows.local_quats[i, k0], windows.root_pos[i, k0], windows.local_quats[i, k1],
+                                    windows.root_pos[i, k1], n, windows.skeleton, forward_axis))
+    return np.concatenate(out)
+
+
+def slerp_base(q0, r0, q1, r1, n_frames: int):
+    """Slerp / lerp between keyframes: q (B, n, J, 4), r (B, n, 3) for the n frames strictly between them."""
+    from inbetween_jax.geometry import quat_slerp
+    w = (np.arange(1, n_frames + 1) / (n_frames + 1))
+    q0, q1 = np.asarray(q0, np.float64), np.asarray(q1, np.float64)
+    q1 = np.where(np.sum(q0 * q1, -1, keepdims=True) < 0, -q1, q1)
+    q = quat_slerp(q0[:, None], q1[:, None], w[None, :, None])
+    r = np.asarray(r0, np.float64)[:, None] + w[None, :, None] * (np.asarray(r1, np.float64) - r0)[:, None]
+    return q, r
+
+
+def gate_blend(q, r, base_q, base_r, weight):
+    """Samples q (S, B, L, J, 4), r (S, B, L, 3) moved toward the base (B, L, J, 4) / (B, L, 3) with the learned
+    fill kept at ``weight`` (B,) (1: the samples, 0: the base)."""
+    from inbetween_jax.models.scvae.bank import blend
+    a = 1.0 - np.asarray(weight, np.float64)[:, None, None]
+    return blend(q, r, base_q, base_r, a)
+
+
+def gate_windows(gate, windows, k0: int, k1: int, q, r, forward_axis=None):
+    """The gate ((ContextBank, Gate)) on samples q (S, B, L, J, 4), r (S, B, L, 3) of the transitions between
+    frames k0 and k1 of B windows.  Returns (q, r, score (B,), weight (B,))."""
+    n = k1 - k0 - 1
+    a = (windows.local_quats[:, k0], windows.root_pos[:, k0], windows.local_quats[:, k1], windows.root_pos[:, k1])
+    fa = windows.skeleton.forward_axis() if forward_axis is None else forward_axis
+    score = gate[0].score(keyframe_context(*a, n, windows.skeleton, fa))
+    weight = gate[1].weight(score)
+    return (*gate_blend(q, r, *slerp_base(*a, n), weight), score, weight)

@@ -1,0 +1,110 @@
+"""``inbetween speed``, ``inbetween sweep`` and ``inbetween ship-weights``: the tools a pip user (no experiments/
+folder) runs.  Each is listed by ``inbetween --help``, has its own ``--help``, reports an argument error in one
+line with status 2 before JAX is imported, and the experiments/ scripts of the same names only forward to them.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+from inbetween_jax.cli import main
+from inbetween_jax.errors import UserError
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+TOOLS = ("speed", "sweep", "ship-weights")
+
+
+def test_top_level_help_lists_the_tools(capsys):
+    assert main(["--help"]) == 0
+    out = capsys.readouterr().out
+    for tool in TOOLS:
+        assert f"\n    {tool}" in out and f"inbetween {tool} " in out, tool
+
+
+@pytest.mark.parametrize("tool", TOOLS)
+def test_each_tool_has_help(tool, capsys):
+    assert main([tool, "--help"]) == 0
+    out, err = capsys.readouterr()
+    assert out.startswith(f"usage: inbetween {tool}") and not err
+    assert "``" not in out and ":mod:" not in out
+
+
+ERRORS = [
+    (["speed", "--reps", "0"], "--reps must be >= 1"),
+    (["speed", "--torch-ref", "missing.py"], "--torch-ref missing.py: no such file"),
+    (["sweep", "--rows", "full,no_such_row"], "unknown row 'no_such_row'"),
+    (["sweep", "--seeds", "2", "model.no_such_key=1"], "model.no_such_key"),
+    (["ship-weights", "no_such_run"], "no_such_run: no such run folder"),
+    (["ship-weights", "."], "not a run folder"),
+    (["ship-weights"], "required: RUN_DIR"),
+]
+
+
+@pytest.mark.parametrize("argv,says", ERRORS, ids=lambda a: a if isinstance(a, str) else "_".join(a))
+def test_argument_errors_are_one_line_before_jax(argv, says, tmp_path):
+    code = ("import sys; from inbetween_jax.cli import main; rc = main(sys.argv[1:]); "
+            "print('jax' in sys.modules, rc)")
+    res = subprocess.run([sys.executable, "-c", code] + argv, capture_output=True, text=True, timeout=120,
+                         cwd=tmp_path)
+    assert res.stdout.split() == ["False", "2"], res.stdout + res.stderr
+    assert res.stderr.count("\n") == 1 and res.stderr.startswith("inbetween: error: ") and says in res.stderr, \
+        res.stderr
+    assert not os.listdir(tmp_path)                                   # nothing written
+
+
+@pytest.mark.parametrize("script,argv,says", [("sweep.py", ["--rows", "nope"], "unknown row 'nope'"),
+                                              ("ship_weights.py", ["no_such_run"], "no such run folder"),
+                                              ("bench_speed.py", ["--reps", "0"], "--reps must be >= 1")])
+def test_experiments_scripts_forward_to_the_subcommands(script, argv, says, tmp_path):
+    path = os.path.join(ROOT, "experiments", script)
+    with open(path) as f:
+        assert len(f.read().splitlines()) <= 12, f"{script} is more than a shim"
+    res = subprocess.run([sys.executable, path] + argv, capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert res.returncode == 2 and res.stderr.count("\n") == 1 and says in res.stderr, res.stderr
+
+
+def test_speed_appends_to_the_bench_files_only_when_both_exist(tmp_path):
+    from inbetween_jax.cli.speed_cmd import append_to_bench
+    out = {"markdown": "## Speed\n| row |", "wall_s": 1.5, "scvae": {"infer_10_ms": 3.0}}
+    assert not append_to_bench(out, str(tmp_path))
+    (tmp_path / "bench.md").write_text("# Bench\n")
+    assert not append_to_bench(out, str(tmp_path))
+    (tmp_path / "bench.json").write_text(json.dumps({"rows": [1]}))
+    assert append_to_bench(out, str(tmp_path))
+    assert (tmp_path / "bench.md").read_text() == "# Bench\n\n## Speed\n| row |\n"
+    assert json.loads((tmp_path / "bench.json").read_text()) == {"rows": [1], "speed": {
+        "wall_s": 1.5, "scvae": {"infer_10_ms": 3.0}}}
+
+
+def test_speed_torch_reference_is_checked(tmp_path):
+    from inbetween_jax.cli.speed_cmd import load_torch_ref, skip_reason
+    assert load_torch_ref(None) is None
+    wrong = tmp_path / "not_a_reference.py"
+    wrong.write_text("def available():\n    return False\n")
+    with pytest.raises(UserError, match="defines no make_step"):
+        load_torch_ref(str(wrong))
+    ref = load_torch_ref(os.path.join(ROOT, "experiments", "torch_scvae.py"))
+    assert callable(ref.make_step)
+    assert ("torch not installed" in skip_reason()) == (not ref.available())
+
+
+def test_readme_and_makefile_use_the_subcommands():
+    """What a pip user reads runs without experiments/; ``make bench`` (not ``make test``) installs the bench extra
+    before the speed section."""
+    readme = open(os.path.join(ROOT, "README.md")).read()
+    for script in ("bench_speed.py", "ship_weights.py", "sweep.py"):
+        assert f"python experiments/{script}" not in readme, script
+    assert "inbetween sweep --seeds 3" in readme and "inbetween ship-weights RUN_DIR" in readme
+    rules = {}
+    for line in open(os.path.join(ROOT, "Makefile")).read().splitlines():
+        if line and not line[0].isspace() and ":" in line and "=" not in line.split(":", 1)[0]:
+            name, prereqs = line.split(":", 1)
+            rules[name.strip()] = prereqs.split()
+    assert "install-bench" in " ".join(rules["bench"]) and "install-bench" not in rules["test"]
+    assert "install" in rules["test"]
+    make = open(os.path.join(ROOT, "Makefile")).read()
+    assert 'pip install --quiet -e ".[bench]"' in make and "inbetween speed --results" in make

@@ -1,0 +1,127 @@
+"""The out-of-distribution score and gate (models/ood.py), the per-window worst-case summary, the activity groups,
+and the shipped gates on real CMU motion."""
+import json
+import os
+
+import numpy as np
+import pytest
+
+from inbetween_jax.data.activities import activity_group, trial_of
+from inbetween_jax.evaluation.worst_case import summarise, worst_case_rows
+from inbetween_jax.models.ood import (BLEND_WEIGHTS, ContextBank, Gate, build_bank, calibrate_gate, gated_ratio,
+                                      load_gate, save_gate)
+
+SHARED = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data")
+ASSETS = os.path.join(os.path.dirname(__file__), "..", "inbetween_jax", "assets", "cmu30")
+
+
+def test_bank_scores_far_contexts_higher_and_round_trips(tmp_path):
+    rng = np.random.default_rng(0)
+    train = rng.normal(size=(600, 12))                  # pure math: Gaussian "contexts"
+    bank = build_bank(train, dims=6, k=4)
+    near = bank.score(rng.normal(size=(200, 12)))
+    far = bank.score(rng.normal(size=(200, 12)) + 6.0)
+    assert 0.6 < np.median(near) < 1.6                  # about 1 inside the training distribution
+    assert np.min(far) > np.max(near)
+    save_gate(str(tmp_path), bank, Gate(1.2, 2.0))
+    bank2, gate2 = load_gate(str(tmp_path))
+    np.testing.assert_allclose(bank2.score(train[:20]), bank.score(train[:20]), rtol=1e-5)
+    assert (gate2.lo, gate2.hi) == (1.2, 2.0)
+    assert load_gate(str(tmp_path / "none")) is None
+
+
+def test_knn_distance_matches_brute_force():
+    rng = np.random.default_rng(1)
+    bank = ContextBank(np.zeros(3), np.ones(3), np.eye(3), rng.normal(size=(50, 3)).astype(np.float32), 3, 1.0)
+    q = rng.normal(size=(7, 3))
+    d = np.linalg.norm(q[:, None] - bank.codes[None].astype(np.float64), axis=-1)
+    np.testing.assert_allclose(bank.knn_distance(q), np.sort(d, 1)[:, :3].mean(1), rtol=1e-6)
+
+
+def test_gate_weight_and_interpolated_ratio():
+    g = Gate(1.0, 2.0)
+    np.testing.assert_allclose(g.weight([0.5, 1.0, 1.5, 2.0, 3.0]), [1, 1, 0.5, 0, 0])
+    assert np.all(Gate(1.0, 2.0, enabled=False).weight([5.0]) == 1)
+    at = np.array([[1.0, 1.1, 1.2, 1.3, 1.4]])             # ratio at BLEND_WEIGHTS 0 .. 1
+    np.testing.assert_allclose(gated_ratio(at, [0.5]), [1.2])
+    np.testing.assert_allclose(gated_ratio(at, [0.125]), [1.05])
+    assert len(BLEND_WEIGHTS) == at.shape[1]
+
+
+def test_calibration_gates_the_windows_that_lose():
+    rng = np.random.default_rng(2)
+    scores = rng.uniform(0.5, 3.0, 400)
+    learned = np.where(scores > 2.0, 1.8, 0.7)            # far windows lose, near ones win
+    at = np.stack([1 + w * (learned - 1) for w in BLEND_WEIGHTS], 1)
+    gate, summary = calibrate_gate(scores, at)
+    assert summary["meets_limits"] and summary["max"] <= 1.5
+    assert gate.weight(1.0) == 1.0 and gate.weight(2.9) == 0.0
+    always = np.array([1 + w * (0.8 - 1) for w in BLEND_WEIGHTS])[None] * np.ones((400, 1))
+    gate2, s2 = calibrate_gate(scores, always)            # the learned fill always wins: never gate
+    assert np.all(gate2.weight(scores) == 1.0) and s2["mean"] == pytest.approx(0.8)
+
+
+def test_worst_case_summary_against_numpy_and_groups():
+    r = np.array([0.5, 0.9, 1.0, 1.2, 2.0])
+    s = summarise(r)
+    assert s["median"] == 1.0 and s["max"] == 2.0 and s["p90"] == pytest.approx(np.quantile(r, 0.9))
+    assert s["share_worse_10pct"] == pytest.approx(0.4)
+    recs = [{"name": "07_05@20", "frames": 30, "ratio": 0.8}, {"name": "09_01@0", "frames": 30, "ratio": 1.3},
+            {"name": "16_01.bvh", "frames": 30, "ratio": 1.6}]
+    rows = worst_case_rows(recs, "per_window", "cmu", "scvae", "Slerp", "test")
+    by = {r["group"]: r for r in rows}
+    assert set(by) == {"all", "walk", "run", "jump"} and by["all"]["windows"] == 3
+    assert by["jump"]["max"] == 1.6 and rows[0]["group"] == "all"
+
+
+def test_activity_groups_of_cmu_trials():
+    assert trial_of("cmu_more/daz43/135_03.bvh") == "135_03" and trial_of("foo.bvh") is None
+    assert activity_group("07_05@120") == "walk" and activity_group("02_03") == "run"
+    assert activity_group("13_10.bvh") == "everyday" and activity_group("60_01_scaled.bvh") == "dance"
+    if os.path.isdir(os.path.join(SHARED, "cmu_more")):
+        assert activity_group("135_03.bvh") == "martial arts/fight"
+        assert activity_group("16_35") == "run"
+
+
+def _shipped_run(model):
+    from inbetween_jax.shipped import shipped_run
+    run = shipped_run(model)
+    if run is None or not os.path.exists(os.path.join(run.run_dir, "ood.npz")):
+        pytest.skip(f"no gated {model} weights ship")
+    return run
+
+
+def test_shipped_scvae_gate_scores_unseen_activity_higher():
+    """Keyframe pairs of motion the shipped S-CVAE never trained on (test subject 13 jumping in place) score
+    higher than pairs of a training file (subject 07 walking), and the gate keeps less of the network there."""
+    from inbetween_jax.data import read_bvh
+    from inbetween_jax.data.retarget import prepare
+    from inbetween_jax.models.scvae import infer
+    from inbetween_jax.models.scvae.gate import keyframe_context
+    run = _shipped_run("scvae")
+    trained = infer.load(run)
+    assert trained.cfg.model.ood_gate
+    fa = tuple(trained.extra.get("forward_axis") or trained.skeleton.forward_axis())
+
+    def scores(name):
+        path = os.path.join(ASSETS, name)
+        m = prepare(read_bvh(path), path, trained.skeleton, run.fps).motion
+        k0 = np.arange(0, m.num_frames - 32, 8)
+        c = keyframe_context(m.local_quats[k0], m.root_pos[k0], m.local_quats[k0 + 31], m.root_pos[k0 + 31], 30,
+                             m.skeleton, fa)
+        return trained.gate[0].score(c)
+    train, unseen = scores("07_05.bvh"), np.concatenate([scores("13_39.bvh"), scores("13_40.bvh")])
+    assert np.median(unseen) > 1.5 * np.median(train)
+    assert np.mean(trained.gate[1].weight(unseen)) < np.mean(trained.gate[1].weight(train))
+
+
+def test_infill_json_reports_the_gate(tmp_path, capsys):
+    from inbetween_jax.cli import main
+    _shipped_run("cae")
+    bvh = os.path.join(ASSETS, "13_10.bvh")
+    assert main(["infill", "--model", "cae", "--bvh", bvh, "--gaps", "100:190", "--out", str(tmp_path / "o")]) == 0
+    info = json.load(open(tmp_path / "o" / "infill.json"))
+    g = info["gaps_ood"][0]
+    assert g["gap_index"] == 0 and g["ood_score"] > 0 and 0.0 <= g["gate_weight"] <= 1.0
+    if g["gate_weight"] < 0.5:
+        assert "falls mostly back" in capsys.readouterr().err
