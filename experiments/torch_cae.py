@@ -16,7 +16,7 @@ learning-rate schedule.  Layout NCHW: the JAX image (B, D, T, C) is (B, C, D, T)
 Deliberate differences, none of which changes a tensor size or the function computed:
 
 * The mask is drawn with torch's generator, so a step's mask differs from JAX's; :func:`loss` takes a given
-  mask (the parity test feeds JAX's).  Ties at a max-pool or a leaky ReLU at exactly 0 take torch's
+  mask (the parity test, ``tests/test_torch_cae.py``, gives both frameworks the same one).  Ties at a max-pool or a leaky ReLU at exactly 0 take torch's
   sub-gradient, not JAX's: equal values almost never occur with non-zero biases.
 * The stride-2 transposed conv is zero insertion + a stride-1 conv, as in JAX (``conv_transpose2d`` with the
   flipped kernel is the same function at a quarter of the multiply-adds; kept out so the work matches).

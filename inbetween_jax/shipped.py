@@ -29,7 +29,7 @@ __all__ = ["ENV", "INFERENCE_SWITCHES", "KEEP", "EXACT", "weights_root", "shippe
 ENV = "INBETWEEN_WEIGHTS_DIR"
 # Switches that only change inference (the trained parameters are the same either way): ``export_run(inference=)``.
 INFERENCE_SWITCHES = {"interaction": ("model.refiner", "model.latent_scale", "model.bank_k", "model.bank_weight",
-                                      "model.texture_sigma", "model.texture_gain", "model.bank_guessed"),
+                                      "model.texture_sigma", "model.texture_gain", "model.bank_guessed", "model.ease_frames"),
                       "scvae": ("model.search", "model.bank_k", "model.bank_weight", "model.bank_tau", "model.ood_gate"),
                       "cae": ("model.mirror_average", "model.ood_gate", "model.root_bound")}
 # Per model: the key-path prefixes of the train state that ``infer.load`` / inference use.

@@ -108,3 +108,26 @@ def test_readme_and_makefile_use_the_subcommands():
     assert "install" in rules["test"]
     make = open(os.path.join(ROOT, "Makefile")).read()
     assert 'pip install --quiet -e ".[bench]"' in make and "inbetween speed --results" in make
+
+
+def test_speed_command_wiring(tmp_path, monkeypatch, capsys):
+    """``inbetween speed`` hands the reference module and the skip reason to the speed section and appends its
+    markdown to an existing bench.md / bench.json (the section itself is stubbed: it takes minutes)."""
+    from inbetween_jax.evaluation import speed
+    seen = {}
+
+    def fake_run(source, results_dir, reps, quick, torch_ref=None, torch_skip=None, **kw):
+        seen.update(source=source, reps=reps, quick=quick, torch_ref=torch_ref, torch_skip=torch_skip)
+        return {"markdown": "## Speed (stub)", "wall_s": 0.0}
+
+    monkeypatch.setattr(speed, "run", fake_run)
+    (tmp_path / "bench.md").write_text("# Bench\n")
+    (tmp_path / "bench.json").write_text("{}")
+    ref = os.path.join(ROOT, "experiments", "torch_scvae.py")
+    assert main(["speed", "--results", str(tmp_path), "--reps", "2", "--quick", "--torch-ref", ref]) == 0
+    assert seen["reps"] == 2 and seen["quick"] and callable(seen["torch_ref"].make_step) and seen["torch_skip"] is None
+    assert "## Speed (stub)" in capsys.readouterr().out
+    assert (tmp_path / "bench.md").read_text().endswith("## Speed (stub)\n")
+    assert json.loads((tmp_path / "bench.json").read_text()) == {"speed": {"wall_s": 0.0}}
+    assert main(["speed", "--results", str(tmp_path / "other")]) == 0
+    assert seen["torch_ref"] is None and seen["torch_skip"]

@@ -125,3 +125,23 @@ def test_infill_json_reports_the_gate(tmp_path, capsys):
     assert g["gap_index"] == 0 and g["ood_score"] > 0 and 0.0 <= g["gate_weight"] <= 1.0
     if g["gate_weight"] < 0.5:
         assert "falls mostly back" in capsys.readouterr().err
+
+
+def test_ease_into_keypose_takes_up_the_snap():
+    from inbetween_jax.models.interaction.bank import ease_into_keypose
+    rng = np.random.default_rng(3)
+    steps = rng.normal(0, 0.01, size=(1, 1, 2, 30, 4, 3)).cumsum(3)        # pure math: a random walk
+    frames = np.concatenate([steps, np.zeros((1, 1, 2, 30, 4, 6))], -1)
+    key = np.zeros((1, 2, 4, 9))
+    key[..., :3] = frames[0, :, :, 19, :, :3] + 0.5                        # the keypose half a unit off at frame 20
+    out = ease_into_keypose(frames, key, [20], 8)
+    x = out[0, 0, :, :20, :, :3]
+    last = key[0, :, :, :3] - x[:, -1]
+    orig = frames[0, 0, :, :20, :, :3]
+    np.testing.assert_allclose(last, orig[:, -1] - orig[:, -2], atol=1e-5)    # last step = the rollout's own
+    np.testing.assert_allclose(out[..., :12, :, :], frames[..., :12, :, :])    # before the eased frames
+    np.testing.assert_allclose(out[..., 20:, :, :], frames[..., 20:, :, :])    # from the gap on
+    np.testing.assert_allclose(out[..., 3:], frames[..., 3:])                  # rotations untouched
+    snap = np.linalg.norm(key[0, :, :, :3] - frames[0, 0, :, 19, :, :3], axis=-1).mean()
+    eased = np.linalg.norm(last, axis=-1).mean()
+    assert eased < 0.2 * snap

@@ -1,6 +1,8 @@
 """The speed section's training-step comparison (inbetween_jax.evaluation.speed) without running a model: side-by-side
 timing in rotating rounds, a torch.compile backend that fails is recorded and the next one used, and the table's
 cells (ratios; "not installed" without torch)."""
+import pytest
+
 from inbetween_jax.evaluation import speed
 
 
@@ -21,7 +23,7 @@ def test_side_by_side_rotates_and_times_every_call():
     assert {n: len(t) for n, t in times.items()} == {"a": 3, "b": 3, "c": 3}
 
 
-def test_a_backend_that_fails_is_recorded_and_the_next_one_used(monkeypatch):
+def test_a_backend_that_fails_is_recorded_and_the_next_one_used():
     def make(backend):
         if backend == "inductor":
             def broken():
@@ -34,8 +36,20 @@ def test_a_backend_that_fails_is_recorded_and_the_next_one_used(monkeypatch):
     assert len(out["calls_ms"]["jax"]) == 5                              # at least 5 rounds
     assert out["torch_compile_tries"]["inductor"] == {"error": "RuntimeError: no C++ compiler"}
     assert out["torch_compile_backend"] == "aot_eager" and out["torch_compile_step_ms"] >= 0
-    monkeypatch.setattr(speed, "COMPILE_TIMEOUT_S", 1)
     assert speed._first_call_s(lambda: None, 1) >= 0
+
+
+def test_a_compile_past_the_limit_is_a_timeout_whatever_the_backend_raises():
+    import time
+
+    def slow():
+        try:
+            time.sleep(3)
+        except TimeoutError as e:
+            raise RuntimeError("compile-worker future did not complete") from e
+
+    with pytest.raises(TimeoutError, match="within 1 s"):
+        speed._first_call_s(slow, 1)
 
 
 def test_table_cells_ratios_and_missing_torch():

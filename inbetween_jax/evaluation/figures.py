@@ -189,7 +189,8 @@ def ratio_distribution(rows: Sequence[dict], path, title: str = "Per-window rati
     return {"path": os.fspath(path), "series": {f: list(boxes[f]) for f in lengths}}
 
 
-def calibration_figure(records: Sequence[dict], lo: float, hi: float, path, title: str, dpi: int = 100):
+def calibration_figure(records: Sequence[dict], lo: float, hi: float, path, title: str, dpi: int = 100,
+                       xlabel: str = "out-of-distribution score (k-NN distance / training median)"):
     """Error ratio against the out-of-distribution score, one point per validation window (``records`` of an
     ``ood_calibration.json``: ``score`` and ``ratios_at``, the last entry being the learned fill alone), with
     the gate's weight of the learned fill (1 below ``lo``, 0 above ``hi``) on a second axis.  Returns the path,
@@ -206,7 +207,7 @@ def calibration_figure(records: Sequence[dict], lo: float, hi: float, path, titl
             ax.scatter(xs, ys, s=9, alpha=0.6, label=f"{n} frames")
         ax.axhline(1.0, color="#555555", ls="--", lw=1.0)
         ax.set_yscale("log")
-        ax.set_xlabel("out-of-distribution score (k-NN distance / training median)")
+        ax.set_xlabel(xlabel)
         ax.set_ylabel("error / base's (learned fill alone)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="upper left")
@@ -247,8 +248,11 @@ def worst_case_figures(rows: Sequence[dict], results_dir, calibrations: dict | N
                     cal = json.load(f)
                 name = f"ood_calibration_{model}.png"
                 s = cal["summary"]
+                kw = {"xlabel": "out-of-distribution score: 1 / (1 + keyframe root travel per frame / c)"} \
+                    if s.get("kind") == "travel" else {}
                 if calibration_figure(cal["records"], s["lo"], s["hi"], os.path.join(results_dir, name),
-                                      f"{model}: validation windows, error ratio against the OOD score", dpi=dpi):
+                                      f"{model}: validation windows, error ratio against the OOD score", dpi=dpi,
+                                      **kw):
                     links.append(f"Gate calibration, {model}: [`{name}`]({name})")
     except (OSError, ValueError, KeyError) as err:
         links.append(f"Worst-case figures: not drawn ({err}).")

@@ -69,7 +69,10 @@ def _first_call_s(step, timeout_s=COMPILE_TIMEOUT_S) -> float:
     import signal
     import threading
 
+    fired = []
+
     def _stop(*_):
+        fired.append(True)
         raise TimeoutError(f"no compiled step within {timeout_s} s")
 
     alarm = hasattr(signal, "SIGALRM") and threading.current_thread() is threading.main_thread()
@@ -79,6 +82,10 @@ def _first_call_s(step, timeout_s=COMPILE_TIMEOUT_S) -> float:
     t0 = time.perf_counter()
     try:
         step()
+    except Exception as e:      # inductor re-raises the alarm inside a worker wait as its own error
+        if fired:
+            raise TimeoutError(f"no compiled step within {timeout_s} s") from e
+        raise
     finally:
         if alarm:
             signal.alarm(0)

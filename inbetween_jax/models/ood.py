@@ -23,7 +23,8 @@ import os
 
 import numpy as np
 
-__all__ = ["ContextBank", "TravelScore", "Gate", "build_bank", "calibrate_gate", "gated_ratio", "BLEND_WEIGHTS", "OOD_FILE", "gate_note", "save_gate", "load_gate", "gated_records", "calibrate_run", "CALIBRATION_FILE"]
+__all__ = ["ContextBank", "TravelScore", "Gate", "build_bank", "calibrate_gate", "gated_ratio", "BLEND_WEIGHTS", "OOD_FILE", "gate_note", "save_gate", "load_gate", "gated_records", "calibrate_run", "CALIBRATION_FILE",
+           "run_gate"]
 
 OOD_FILE = "ood.npz"                              # the bank and gate in a run folder / shipped weights folder
 BLEND_WEIGHTS = (0.0, 0.25, 0.5, 0.75, 1.0)       # weights of the learned fill at which calibration scores windows
@@ -228,3 +229,19 @@ def gated_records(calibration: dict, gate) -> list:
     ratio = gated_ratio([r["ratios_at"] for r in recs], w)
     return [{"name": r["name"], "frames": r["frames"], "ratio": float(x), "score": r["score"], "weight": float(wi)}
             for r, x, wi in zip(recs, ratio, w)]
+
+
+def run_gate(run_dir: str, enabled: bool):
+    """The run folder's ``(scorer, Gate)`` when ``model.ood_gate`` is on (``enabled``), else None.
+
+    Raises:
+        RunError: the switch is on but the folder holds no readable ``ood.npz`` (one line).
+    """
+    if not enabled:
+        return None
+    from inbetween_jax.train.run import RunError
+    gate = load_gate(run_dir)
+    if gate is None:
+        raise RunError(f"{run_dir}: model.ood_gate is on but the folder holds no {OOD_FILE} (calibrate it with "
+                       "`python experiments/calibrate_gate.py RUN_DIR`)")
+    return gate

@@ -80,13 +80,8 @@ def load(run: Run) -> TrainedCAE:
                             jax.random.key(0))
     state = restore_state(run, target)
     normalizer = Normalizer(np.asarray(run.stats["mean"], np.float32), np.asarray(run.stats["std"], np.float32))
-    gate = None
-    if cfg.model.ood_gate:
-        from inbetween_jax.models.ood import load_gate
-        gate = load_gate(run.run_dir)
-        if gate is None:
-            raise RunError(f"{run.run_dir}: model.ood_gate is on but the folder holds no ood.npz (calibrate it with "
-                           "`python experiments/calibrate_gate.py cae RUN_DIR`)")
+    from inbetween_jax.models.ood import run_gate
+    gate = run_gate(run.run_dir, cfg.model.ood_gate)
     return TrainedCAE(state["params"], cfg, normalizer, Skeleton.from_dict(run.skeleton), j, run.step, gate)
 
 

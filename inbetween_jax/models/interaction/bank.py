@@ -33,7 +33,8 @@ from inbetween_jax.metrics.foot import SKATING_HEIGHT_CM
 from inbetween_jax.models.interaction.features import keyframe_sample
 
 __all__ = ["BANK_FILE", "SWITCHES", "MATCH_FRAMES", "FADE", "MotionBank", "gaussian_lowpass", "match_features",
-           "knn_inbetween", "texture", "apply_bank", "arrival_gaps", "bank_enabled", "foot_indices"]
+           "knn_inbetween", "texture", "apply_bank", "arrival_gaps", "bank_enabled", "foot_indices",
+           "ease_into_keypose"]
 
 BANK_FILE = "bank.npz"
 SWITCHES = ("model.bank_k", "model.bank_weight", "model.texture_sigma", "model.texture_gain",
@@ -264,3 +265,27 @@ def apply_bank(bank: MotionBank, model_cfg, frames, context, keypose, gaps, feet
                 add[..., foot, :3] *= np.clip(low - 1.0, 0.0, 1.0)[..., None]
             out[:, sel, :, :n] += add
     return out
+
+
+def ease_into_keypose(frames, keypose, gaps, ease: int) -> np.ndarray:
+    """Rollouts whose last ``ease`` frames before each window's keypose take up the jump onto it: with ``x`` the
+    positions, ``n`` the gap and ``e = key - (2 x[n-1] - x[n-2])`` the keypose's distance from where the motion
+    was heading, frame ``n - ease + i`` moves by ``s(i) e`` (``s``: smoothstep from 0 to 1 at frame ``n - 1``),
+    so the step onto the key equals the rollout's own last step (``x[n-1] - x[n-2]``) instead of a snap.  Positions only
+    (the first 3 of the 9 numbers); frames from the gap on are left as they are.
+
+    frames (S, B, 2, F, J, 9); keypose (B, 2, J, 9); gaps (B,) ints.  -> (S, B, 2, F, J, 9) float32."""
+    out = np.array(frames, np.float32)
+    kp = np.asarray(keypose, np.float32)
+    for b, g in enumerate(np.asarray(gaps).astype(int)):
+        n = min(int(g), out.shape[3])
+        m = min(int(ease), n - 2)
+        if m < 1:
+            continue
+        x = out[:, b, :, :n, :, :3]                                            # (S, 2, n, J, 3)
+        e = kp[None, b, :, :, :3] - (2 * x[:, :, -1] - x[:, :, -2])            # (S, 2, J, 3)
+        t = np.arange(1, m + 1) / m
+        s = (3 * t ** 2 - 2 * t ** 3)[:, None, None]                           # 0 .. 1 at frame n - 1
+        out[:, b, :, n - m:n, :, :3] += s[None, None] * e[:, :, None]
+    return out
+

@@ -79,7 +79,7 @@ def _model_method(trained, use_refiner=None, gap="true", latent_scale=None, use_
     nothing with the true one) and the frames asked for are kept."""
     import jax
     from inbetween_jax.evaluation.interaction import N_INPUT, guess_gap_length
-    from inbetween_jax.models.interaction.bank import apply_bank, arrival_gaps, foot_indices
+    from inbetween_jax.models.interaction.bank import apply_bank, arrival_gaps, ease_into_keypose, foot_indices
     from inbetween_jax.models.interaction.model import sample_rollouts
     cfg, fa = trained.cfg, trained.forward_axis.astype(np.float32)
     feet = foot_indices(trained.skeleton)
@@ -101,10 +101,12 @@ def _model_method(trained, use_refiner=None, gap="true", latent_scale=None, use_
         banked = use_bank and trained.bank is not None and (gap == "true" or cfg.model.bank_guessed)
         long = max(steps, -(-ARRIVAL_HORIZON // l)) if banked and gap == "guess" else steps
         out = np.array(rolled(long, samples)(trained.params, ctx, b["keypose"], b["rel_R"], b["rel_t"], g, key))
+        if gap == "true":            # the known gap: bank, then the last frames eased onto the keypose
+            if banked:
+                out = apply_bank(trained.bank, cfg.model, out, ctx, b["keypose"], g, feet)
+            return ease_into_keypose(out, b["keypose"], g, cfg.model.ease_frames) if cfg.model.ease_frames else out
         if not banked:
             return out
-        if gap == "true":
-            return apply_bank(trained.bank, cfg.model, out, ctx, b["keypose"], g, feet)
         top, blend_only = trained.bank.max_gap(N_INPUT), dataclasses.replace(cfg.model, texture_sigma=0.0)
         for s in range(len(out)):                                   # each sample over the gap it takes itself
             arrive = arrival_gaps(out[s], b["keypose"], cfg.model.stop_threshold, cfg.data.pos_scale)

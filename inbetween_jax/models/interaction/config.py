@@ -143,6 +143,8 @@ class ModelConfig:
     texture_gain: float = 1.0      # inference: the texture's gain
     bank_guessed: bool = False     # inference: with a guessed gap, apply the bank over the gap the network's
                                    # own rollout takes (:func:`.bank.arrival_gaps`), not the guess (blend only)
+    ease_frames: int = 0           # inference: the last N frames before the keypose take up the jump onto it
+                                   # (:func:`.bank.ease_into_keypose`; 0: off, the paper; on in the shipped run)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -21,7 +21,8 @@ from inbetween_jax.data.user_input import check_skeleton, finite_or_fail, read_k
 from inbetween_jax.errors import UserError
 from inbetween_jax.geometry import quat_fix_sign_np, quat_from_forward_up, quat_inv, quat_mul, quat_normalize
 from inbetween_jax.geometry.fit import fit_rotations
-from inbetween_jax.models.interaction.bank import BANK_FILE, MotionBank, apply_bank, bank_enabled, foot_indices
+from inbetween_jax.models.interaction.bank import (BANK_FILE, MotionBank, apply_bank, bank_enabled, ease_into_keypose,
+                                                  foot_indices)
 from inbetween_jax.models.interaction.config import Config
 from inbetween_jax.models.interaction.features import (apply_space, key_space_inputs, root_space,
                                                        world_joint_features)
@@ -108,6 +109,8 @@ def infill_features(trained: Trained, context, keyframes, frames: int, num_sampl
     if trained.bank is not None:
         feet = foot_indices(trained.skeleton)
         out = apply_bank(trained.bank, cfg.model, out, b["x"], b["keypose"], [frames], feet)
+    if cfg.model.ease_frames:      # the last frames take up the jump onto the keypose (.bank.ease_into_keypose)
+        out = ease_into_keypose(out, b["keypose"], [frames], cfg.model.ease_frames)
     out = np.asarray(out, np.float64)[:, 0, :, :frames]                        # (S, 2, frames, J, 9)
     out[..., :3] /= cfg.data.pos_scale
     return apply_space(out, R[None, :, None], t[None, :, None])

@@ -74,13 +74,8 @@ def load(run) -> Trained:
         raise RunError(f"{run.run_dir}: run.json records no skeleton (num_joints unknown)")
     init_fn = make_init_fn(cfg, stats_like(int(num_joints)), int(num_joints))
     state = restore_state(run, jax.eval_shape(init_fn, jax.random.key(0)))
-    gate = None
-    if cfg.model.ood_gate:
-        from inbetween_jax.models.ood import load_gate
-        gate = load_gate(run.run_dir)
-        if gate is None:
-            raise RunError(f"{run.run_dir}: model.ood_gate is on but the folder holds no ood.npz (calibrate it with "
-                           "`python experiments/calibrate_gate.py scvae RUN_DIR`)")
+    from inbetween_jax.models.ood import run_gate
+    gate = run_gate(run.run_dir, cfg.model.ood_gate)
     return Trained(cfg, state, int(run.step), skeleton, dict(run.extra, num_joints=int(num_joints)),
                    load_bank(run.run_dir, cfg.model, int(num_joints)), gate)
 

@@ -1,0 +1,49 @@
+"""The shipped weights keep their documented quality on the embedded CMU test windows (docs/results/gate.md,
+"Current results"): a change that makes them worse than their documented ratio to their base fails here.
+
+Each check is a subset of the bench's protocol, cheap enough for the default suite: the S-CVAE on the first 24
+Table-1 windows at 30 frames (4 samples; gated, as shipped), the CAE on the time-matched 1 s gap of every test
+clip.  The reference ratios were measured by these same functions on the shipped weights; the tolerance covers
+sampling noise, not a regression.
+"""
+import numpy as np
+import pytest
+
+from inbetween_jax.shipped import shipped_run
+
+SCVAE_RATIO_30 = 0.992    # L2P / Slerp's, 24 windows, 30 frames, 4 samples (seed 0)
+CAE_RATIO_1S = 0.916      # gap error / linear fill's, time-matched 1 s gap, every test clip
+TOL = 0.02
+
+
+def test_shipped_scvae_keeps_its_ratio_to_slerp():
+    from inbetween_jax.baselines import interpolate_transition
+    from inbetween_jax.data import l2p_stats, load_dataset
+    from inbetween_jax.evaluation import transition_metrics
+    from inbetween_jax.models.scvae import infer
+    run = shipped_run("scvae")
+    trained = infer.load(run)
+    train = load_dataset("embedded", "train")
+    bench = load_dataset("embedded", "benchmark").take(slice(0, 24))
+    x_mean, x_std = l2p_stats(train.global_pose()[1])
+    s = infer.sample_transitions(trained.cfg.model, trained.state, bench, 10, 30, 4, gate=trained.gate)
+    q, r = interpolate_transition(bench.local_quats.astype(np.float64), bench.root_pos.astype(np.float64), 10, 30)
+    ours = transition_metrics(bench, 10, 30, s["q"], s["r"], x_mean, x_std)["L2P"]
+    base = transition_metrics(bench, 10, 30, q[None], r[None], x_mean, x_std)["L2P"]
+    assert ours / base == pytest.approx(SCVAE_RATIO_30, abs=TOL)
+    assert ours / base <= 1.0 + TOL                        # never worse than Slerp here, beyond sampling noise
+
+
+def test_shipped_cae_keeps_its_ratio_to_linear_fill():
+    from inbetween_jax.data import load_motions
+    from inbetween_jax.evaluation import infilling as proto
+    from inbetween_jax.models.cae.bench import _baseline, _time_matched
+    from inbetween_jax.models.cae.infer import fill, load
+    model = load(shipped_run("cae"))
+    motions = load_motions("embedded", "test")
+    x = proto.test_clips(motions, model.normalizer)
+    fps = float(motions[0].fps)
+    ours = _time_matched(lambda i, m: fill(model, i, m), x, model.normalizer, model.num_joints, fps, None)
+    lin = _time_matched(_baseline("linear"), x, model.normalizer, model.num_joints, fps, None)
+    ratio = ours["gaps"][1]["err"][0] / lin["gaps"][1]["err"][0]
+    assert ratio == pytest.approx(CAE_RATIO_1S, abs=TOL)
