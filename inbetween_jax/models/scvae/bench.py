@@ -220,7 +220,7 @@ def official_rows(trained, bench, x_mean, x_std, name: str) -> list:
 
     for n in lengths:
         s = infer.sample_transitions(trained.cfg.model, trained.state, bench, N_PAST, n, NUM_SAMPLES, velocity=True,
-                                     bank=trained.bank, blend_bank=False, gate=trained.gate)
+                                     bank=trained.bank, blend_bank=False, gate=getattr(trained, "gate", None))
         q, r = s["q"], s["r"]
         if show_bank:
             bq, br = s["bank_q"], s["bank_r"]
