@@ -164,8 +164,8 @@ def calibrate_gate(scores, ratios_at, p90_max: float = 1.05, worst_max: float = 
 def gate_note(score: float, weight: float, base: str) -> str:
     """The line the CLI prints about the out-of-distribution gate (:mod:`inbetween_jax.models.ood`)."""
     if weight < 0.5:
-        return (f"far from the training motion (out-of-distribution score {score:.2f}): the fill falls mostly "
-                f"back to its base, {base} (learned part kept at {weight:.2f})")
+        return (f"outside what the network learned (out-of-distribution score {score:.2f}): the fill falls "
+                f"mostly back to its base, {base} (learned part kept at {weight:.2f})")
     return f"out-of-distribution score {score:.2f}: learned fill kept at {weight:.2f} over its base ({base})"
 
 
