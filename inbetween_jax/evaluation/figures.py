@@ -93,6 +93,12 @@ def _safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("._") or "data"
 
 
+def _save(fig, path, dpi: int, **savefig) -> None:
+    """Lay out ``fig`` and write it as a PNG atomically (``save_atomic``: nothing half-written)."""
+    fig.tight_layout()
+    save_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=dpi, facecolor="white", **savefig), ".png")
+
+
 def _draw(panels: list, path: str, title: str, dpi: int) -> None:
     fig = plt.figure(figsize=(8.0, 3.0 * len(panels)), dpi=dpi, facecolor="white")
     try:
@@ -107,9 +113,7 @@ def _draw(panels: list, path: str, title: str, dpi: int) -> None:
             ax.grid(alpha=0.3)
             ax.legend(fontsize=7, frameon=False, loc="upper left", bbox_to_anchor=(1.01, 1.0))
         fig.suptitle(title, fontsize=11)
-        fig.tight_layout()
-        save_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=dpi, facecolor="white",
-                                                 bbox_inches="tight"), ".png")
+        _save(fig, path, dpi, bbox_inches="tight")
     finally:
         plt.close(fig)
 
@@ -181,9 +185,7 @@ def ratio_distribution(rows: Sequence[dict], path, title: str = "Per-window rati
             ax.set_ylabel("ratio to base (per window)" if i == 0 else "")
             ax.grid(alpha=0.3, axis="y")
         fig.suptitle(title, fontsize=11)
-        fig.tight_layout()
-        save_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=dpi, facecolor="white",
-                                                 bbox_inches="tight"), ".png")
+        _save(fig, path, dpi, bbox_inches="tight")
     finally:
         plt.close(fig)
     return {"path": os.fspath(path), "series": {f: list(boxes[f]) for f in lengths}}
@@ -219,8 +221,7 @@ def calibration_figure(records: Sequence[dict], lo: float, hi: float, path, titl
             ax2.set_ylim(-0.05, 1.05)
             ax2.set_ylabel("gate: weight of the learned fill")
         ax.set_title(title, fontsize=10)
-        fig.tight_layout()
-        save_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=dpi, facecolor="white"), ".png")
+        _save(fig, path, dpi)
     finally:
         plt.close(fig)
     return os.fspath(path)

@@ -24,7 +24,7 @@ import os
 import numpy as np
 
 __all__ = ["ContextBank", "TravelScore", "Gate", "build_bank", "calibrate_gate", "gated_ratio", "BLEND_WEIGHTS", "OOD_FILE", "gate_note", "save_gate", "load_gate", "gated_records", "calibrate_run", "CALIBRATION_FILE",
-           "run_gate"]
+           "run_gate", "calibration_worst_case"]
 
 OOD_FILE = "ood.npz"                              # the bank and gate in a run folder / shipped weights folder
 BLEND_WEIGHTS = (0.0, 0.25, 0.5, 0.75, 1.0)       # weights of the learned fill at which calibration scores windows
@@ -245,3 +245,18 @@ def run_gate(run_dir: str, enabled: bool):
         raise RunError(f"{run_dir}: model.ood_gate is on but the folder holds no {OOD_FILE} (calibrate it with "
                        "`python experiments/calibrate_gate.py RUN_DIR`)")
     return gate
+
+
+def calibration_worst_case(run_dir: str, gate, model: str, base: str) -> list:
+    """Worst-case rows (:func:`inbetween_jax.evaluation.worst_case.worst_case_rows`, split "validation
+    subjects") of the gate's calibration windows in ``run_dir/ood_calibration.json``, scored at the weights the
+    gate ((scorer, Gate)) gives them; [] without a gate or that file."""
+    import json
+    from inbetween_jax.evaluation.worst_case import worst_case_rows
+    path = os.path.join(run_dir, CALIBRATION_FILE)
+    if gate is None or not os.path.exists(path):
+        return []
+    with open(path) as f:
+        cal = json.load(f)
+    return worst_case_rows(gated_records(cal, gate[1]), "per_window", cal.get("source", "cmu"), model, base,
+                           "validation subjects")

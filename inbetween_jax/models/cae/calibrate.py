@@ -10,10 +10,8 @@ def per_window_rows(positions, names, methods, data, runs, models) -> list:
     over every gap position as a ratio to the Hermite fill's and to linear fill's, on the test clips; plus the
     validation subjects from a gated run's ``ood_calibration.json`` (its calibration gaps at the gate's
     weights, ratio to the run's pre-fill)."""
-    import json
-    import os
     from inbetween_jax.evaluation.worst_case import worst_case_rows
-    from inbetween_jax.models.ood import CALIBRATION_FILE, gated_records
+    from inbetween_jax.models.ood import calibration_worst_case
     out = []
     for m in methods:
         if m in ("linear", "hermite"):
@@ -23,12 +21,7 @@ def per_window_rows(positions, names, methods, data, runs, models) -> list:
                     for s in positions[m] for n, o, b in zip(names, positions[m][s]["per_clip"],
                                                              positions[base][s]["per_clip"])]
             out += worst_case_rows(recs, "per_window", data, "cae", label, "test")
-        path = os.path.join(runs[m].run_dir, CALIBRATION_FILE)
-        if getattr(models[m], "gate", None) is not None and os.path.exists(path):
-            with open(path) as f:
-                cal = json.load(f)
-            out += worst_case_rows(gated_records(cal, models[m].gate[1]), "per_window", cal.get("source", "cmu"),
-                                   "cae", "the Hermite fill", "validation subjects")
+        out += calibration_worst_case(runs[m].run_dir, getattr(models[m], "gate", None), "cae", "the Hermite fill")
     return out
 
 

@@ -148,11 +148,13 @@ def process_motion(model, motion, gaps=(), noise: float = 0.0, dropout: float = 
     if dropout > 0:
         mask = mask * dropout_mask(rng, (t_len,), j, dropout)
     x_in = add_position_noise(rng, x, j, noise) if noise > 0 else x
-    y = fill(model, x_in, mask, keep_known=keep_known)
+    gating = getattr(model, "gate", None) is not None and model.cfg.model.ood_gate
+    y = fill(model, x_in, mask, keep_known=keep_known, gate=False)
     gated = []
-    if gaps and getattr(model, "gate", None) is not None and model.cfg.model.ood_gate:
+    if gating:                      # once, here, so the per-gap scores come with the gated fill
         from inbetween_jax.models.cae.gate import gate_clips
-        gated = gate_clips(model, x_in[None] * mask[None], mask[None], y[None])[1][0]   # y is gated: the report
+        y, info = gate_clips(model, (x_in * mask)[None], mask[None], y[None])
+        y, gated = y[0], info[0]
     bound = float(getattr(model.cfg.model, "root_bound", 0.0)) * 100.0 if hasattr(model, "cfg") else 0.0
     pos = to_global(y, model.normalizer, j, feats.ref0, feats.yaw0, known_feats=feats.features, frame_mask=fm,
                     root_bound=bound if gaps else 0.0)

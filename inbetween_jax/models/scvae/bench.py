@@ -36,6 +36,7 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
     from inbetween_jax.data import l2p_stats, load_dataset, resolve_source
     from inbetween_jax.evaluation import TABLE_COLUMNS, baseline_table1, flat_rows, markdown_table, transition_metrics
     from inbetween_jax.evaluation.worst_case import worst_case_markdown, worst_case_rows
+    from inbetween_jax.models.ood import calibration_worst_case
     from inbetween_jax.models.scvae import infer
     from inbetween_jax.models.scvae.gate import gate_windows
     from inbetween_jax.train.run import RunError, load_run
@@ -86,9 +87,9 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
         if gated:          # the network before the gate, then the gated samples (models/ood.py)
             rows.append({"method": UNGATED, "frames": length, "MMPE": None,
                          **transition_metrics(bench, N_PAST, length, s["q"], s["r"], x_mean, x_std)})
-            q, r, score, _ = gate_windows(trained.gate, bench, N_PAST - 1, N_PAST + length, s["q"], s["r"], fa)
+            q, r, _, _ = gate_windows(trained.gate, bench, N_PAST - 1, N_PAST + length, s["q"], s["r"], fa)
             s = dict(s, q=q, r=r)
-        per_window += window_ratios(bench, N_PAST, length, s["q"], s["r"], score if gated else None)
+        per_window += window_ratios(bench, N_PAST, length, s["q"], s["r"])
         if length == max(lengths):
             longest = s
         row = {"method": "S-CVAE", "frames": length,
@@ -110,7 +111,7 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
                                   f"S-CVAE, official LaFAN1 protocol (10 past frames; the model uses them {vel} the "
                                   f"past frame's root velocity; metrics averaged over {NUM_SAMPLES} samples)")
     wc = worst_case_rows(per_window, "per_window", data_name(source), "scvae", "Slerp", "test")
-    wc += validation_worst_case(run_, trained)
+    wc += calibration_worst_case(run_.run_dir, trained.gate, "scvae", "Slerp")
     md += "\n\n" + worst_case_markdown([r for r in wc if r["split"] == "test"],
                                         f"S-CVAE per window, test windows{' (gated)' if gated else ''}")
     if any(r["split"] != "test" for r in wc):
@@ -153,31 +154,16 @@ def data_name(source) -> str:
     return "lafan1" if is_lafan1(source) else source if source in ("embedded", "cmu") else "bvh"
 
 
-def window_ratios(windows, n_past: int, n_trans: int, q, r, scores=None) -> list:
+def window_ratios(windows, n_past: int, n_trans: int, q, r) -> list:
     """Per-window records (:mod:`inbetween_jax.evaluation.worst_case`): mean joint position error of the samples
-    q (S, B, L, J, 4), r (S, B, L, 3) over Slerp's, per window (``score``: the gate's, when given)."""
+    q (S, B, L, J, 4), r (S, B, L, 3) over Slerp's, per window."""
     from inbetween_jax.baselines import interpolate_transition
     sq, sr = interpolate_transition(windows.local_quats.astype(np.float64), windows.root_pos.astype(np.float64),
                                     n_past, n_trans)
     base = per_frame_error(windows, n_past, n_trans, sq[None], sr[None])[0].mean(-1)
     ours = per_frame_error(windows, n_past, n_trans, q, r).mean((0, 2))
-    return [{"name": windows.seq_names[i], "frames": n_trans, "ratio": float(ours[i] / max(base[i], 1e-6)),
-             **({} if scores is None else {"score": float(scores[i])})} for i in range(len(windows))]
-
-
-def validation_worst_case(run_, trained) -> list:
-    """Per-window rows on the validation subjects from the run's ``ood_calibration.json`` (the gate's
-    calibration windows, scored at the gate's weights), or [] when the run has none."""
-    import json
-    from inbetween_jax.evaluation.worst_case import worst_case_rows
-    from inbetween_jax.models.ood import CALIBRATION_FILE, gated_records
-    path = os.path.join(run_.run_dir, CALIBRATION_FILE)
-    if trained.gate is None or not os.path.exists(path):
-        return []
-    with open(path) as f:
-        cal = json.load(f)
-    return worst_case_rows(gated_records(cal, trained.gate[1]), "per_window", cal.get("source", "cmu"), "scvae",
-                           "Slerp", "validation subjects")
+    return [{"name": windows.seq_names[i], "frames": n_trans, "ratio": float(ours[i] / max(base[i], 1e-6))}
+            for i in range(len(windows))]
 
 
 def bank_alone_name(model_cfg) -> str:
@@ -300,4 +286,3 @@ def val_score(run, source: str) -> float:
                                      bank=trained.bank, blend_bank=False)
         errs.append(transition_metrics(val, N_PAST, n, s["q"], s["r"], x_mean, x_std)["L2P"])
     return float(np.mean(errs))
-

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["keyframe_context", "training_contexts", "gate_blend", "slerp_base"]
+__all__ = ["keyframe_context", "training_contexts", "gate_blend", "slerp_base", "gate_pairs", "gate_windows"]
 
 
 def keyframe_context(q0, r0, q1, r1, n_frames, skeleton, forward_axis) -> np.ndarray:
@@ -63,12 +63,18 @@ def gate_blend(q, r, base_q, base_r, weight):
     return blend(q, r, base_q, base_r, a)
 
 
-def gate_windows(gate, windows, k0: int, k1: int, q, r, forward_axis=None):
-    """The gate ((ContextBank, Gate)) on samples q (S, B, L, J, 4), r (S, B, L, 3) of the transitions between
-    frames k0 and k1 of B windows.  Returns (q, r, score (B,), weight (B,))."""
-    n = k1 - k0 - 1
-    a = (windows.local_quats[:, k0], windows.root_pos[:, k0], windows.local_quats[:, k1], windows.root_pos[:, k1])
-    fa = windows.skeleton.forward_axis() if forward_axis is None else forward_axis
-    score = gate[0].score(keyframe_context(*a, n, windows.skeleton, fa))
+def gate_pairs(gate, q0, r0, q1, r1, skeleton, forward_axis, q, r):
+    """The gate ((scorer, Gate)) on samples q (S, B, L, J, 4), r (S, B, L, 3) of the L frames between B keyframe
+    pairs q0 / q1 (B, J, 4), r0 / r1 (B, 3).  Returns (q, r, score (B,), weight (B,))."""
+    n = np.shape(q)[2]
+    a = (q0, r0, q1, r1)
+    score = gate[0].score(keyframe_context(*a, n, skeleton, forward_axis))
     weight = gate[1].weight(score)
     return (*gate_blend(q, r, *slerp_base(*a, n), weight), score, weight)
+
+
+def gate_windows(gate, windows, k0: int, k1: int, q, r, forward_axis=None):
+    """:func:`gate_pairs` for the transitions between frames k0 and k1 of B windows."""
+    fa = windows.skeleton.forward_axis() if forward_axis is None else forward_axis
+    return gate_pairs(gate, windows.local_quats[:, k0], windows.root_pos[:, k0], windows.local_quats[:, k1],
+                      windows.root_pos[:, k1], windows.skeleton, fa, q, r)

@@ -259,11 +259,9 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
         q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
     gated = {}
     if trained.gate is not None and m.ood_gate:   # toward Slerp / lerp as the keyframes leave the training motion
-        from inbetween_jax.models.scvae.gate import gate_blend, keyframe_context, slerp_base
-        a = (qs[None], roots[:1], qe[None], roots[1:])
-        score = trained.gate[0].score(keyframe_context(*a, frames, skeleton, fa))
-        weight = trained.gate[1].weight(score)
-        mid_q, mid_r = gate_blend(q[:, None, 1:-1], r[:, None, 1:-1], *slerp_base(*a, frames), weight)
+        from inbetween_jax.models.scvae.gate import gate_pairs
+        mid_q, mid_r, score, weight = gate_pairs(trained.gate, qs[None], roots[:1], qe[None], roots[1:], skeleton, fa,
+                                                 q[:, None, 1:-1], r[:, None, 1:-1])
         q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
         gated = {"ood_score": float(score[0]), "gate_weight": float(weight[0])}
     q[:, 0], r[:, 0], q[:, -1], r[:, -1] = qs, roots[0], qe, roots[1]                 # exact keyframes
