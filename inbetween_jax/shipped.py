@@ -30,7 +30,8 @@ ENV = "INBETWEEN_WEIGHTS_DIR"
 # Switches that only change inference (the trained parameters are the same either way): ``export_run(inference=)``.
 INFERENCE_SWITCHES = {"interaction": ("model.refiner", "model.latent_scale", "model.bank_k", "model.bank_weight",
                                       "model.texture_sigma", "model.texture_gain", "model.bank_guessed", "model.ease_frames"),
-                      "scvae": ("model.search", "model.bank_k", "model.bank_weight", "model.bank_tau", "model.ood_gate"),
+                      "scvae": ("model.search", "model.bank_k", "model.bank_weight", "model.bank_tau", "model.ood_gate",
+                                "model.motion_temperature", "model.motion_spread"),
                       "cae": ("model.mirror_average", "model.ood_gate", "model.root_bound")}
 # Per model: the key-path prefixes of the train state that ``infer.load`` / inference use.
 KEEP = {"scvae": ("params", "stats"),                # generators + normalisation (disc, opt_g, opt_d dropped)

@@ -137,9 +137,12 @@ def test_infill_preview(runs, tmp_path, capsys, monkeypatch):
     run_cli(["infill", "--model", "scvae", "--ckpt", runs["scvae"], "--start", f"{CLIP_A}:5", "--end", f"{CLIP_B}:40",
              "--frames", SCVAE_FRAMES, "--samples", 3, "--out", out, "--seed", 1, "--preview"], capsys)
     assert sorted(os.listdir(out)) == ["infill.json"] + [f"sample_0{i}{e}" for i in range(3)
-                                                          for e in (".bvh", "_sheet.png")]
+                                                          for e in (".bvh", "_sheet.png")] + ["samples_sheet.png"]
     for i in range(3):
         assert {black, grey} <= _png_colours(out / f"sample_0{i}_sheet.png")
+    assert black in _png_colours(out / "samples_sheet.png")             # the samples overlaid, keyframes black
+    summary = json.loads((out / "infill.json").read_text())
+    assert len(summary["samples_spread_cm"]) == 3 and summary["samples_pairwise_cm"] >= 0
     out = tmp_path / "c"
     run_cli(["infill", "--model", "cae", "--ckpt", runs["cae"], "--bvh", CLIP_A, "--gaps", "10:30,50:60",
              "--out", out, "--preview"], capsys)

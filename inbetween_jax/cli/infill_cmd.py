@@ -156,7 +156,7 @@ def load_checked_run(args):
 
 
 def run_infill(args) -> int:
-    from inbetween_jax.cli.outputs import add_previews, bvh_writer, json_writer, write_outputs
+    from inbetween_jax.cli.outputs import add_previews, add_samples_sheet, bvh_writer, json_writer, write_outputs
     check_args(args)
     args.preview = args.preview or args.gif
     run = load_checked_run(args)
@@ -175,6 +175,8 @@ def run_infill(args) -> int:
                 files[f"{name}_{'ABCDEFGH'[c]}.bvh"] = bvh_writer(motion)
         if args.preview:
             add_previews(files, name, motions, generated, result.what, gif=args.gif)
+    if args.preview and len(result.samples) > 1 and all(len(m) == 1 for _, m, _ in result.samples):
+        add_samples_sheet(files, [m[0] for _, m, _ in result.samples], result.what)
     files.update(result.extra_files)
     summary = dict(result.summary, model=args.model, checkpoint=run.run_dir, step=run.step, seed=args.seed,
                    weights="shipped" if run.weights else "checkpoint")

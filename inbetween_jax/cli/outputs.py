@@ -77,6 +77,24 @@ def json_writer(obj):
     return write
 
 
+def add_samples_sheet(files: dict, motions: list, what: str = "keyframes") -> None:
+    """Add ``samples_sheet.png``: every sample of one in-between overlaid frame by frame, one colour each
+    (:func:`inbetween_jax.viz_samples.samples_sheet`).  motions: one Motion per sample, the same frames."""
+    import numpy as np
+
+    from inbetween_jax.data.features import detect_unit_scale
+    from inbetween_jax.viz import motion_positions
+    from inbetween_jax.viz_samples import MAX_SAMPLES_DRAWN, samples_sheet
+    motions = motions[:MAX_SAMPLES_DRAWN]
+    cm = detect_unit_scale(motions[0].skeleton)
+    pos = np.stack([motion_positions(m) * cm for m in motions])
+    t = pos.shape[1]
+    every = max(1, -(-t // 12))
+    title = f"{len(motions)} samples overlaid (one colour each), {what} black"
+    files["samples_sheet.png"] = lambda path: samples_sheet(pos, motions[0].skeleton.parents, path, every=every,
+                                                            keyframes=[0, t - 1], title=title)
+
+
 def add_previews(files: dict, name: str, motions: list, generated=None, what: str = "keyframes",
                  gif: bool = False) -> None:
     """Add ``name``'s contact sheet (and with ``gif`` an animation) writers to ``files``.

@@ -39,6 +39,8 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
     from inbetween_jax.models.ood import calibration_worst_case
     from inbetween_jax.models.scvae import infer
     from inbetween_jax.models.scvae.gate import gate_windows
+    from inbetween_jax.models.scvae.samples import COLUMNS as SAMPLE_COLUMNS
+    from inbetween_jax.models.scvae.samples import RATIO_COLUMNS, length_rows
     from inbetween_jax.train.run import RunError, load_run
 
     t0 = time.time()
@@ -71,7 +73,7 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
     model_cfg = trained.cfg.model
     gated = trained.gate is not None and model_cfg.ood_gate
     fa = tuple(trained.extra.get("forward_axis") or bench.skeleton.forward_axis())
-    per_window = []
+    per_window, sample_table = [], []
     use_bank, show_bank = (trained.bank is not None and f(model_cfg) for f in (bank_enabled, bank_needed))
     for length in lengths:
         s = infer.sample_transitions(model_cfg, trained.state, bench, N_PAST, length, NUM_SAMPLES, bank=trained.bank,
@@ -84,11 +86,14 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
             rows.append({"method": NETWORK_ALONE, "frames": length, "MMPE": None,
                          **transition_metrics(bench, N_PAST, length, s["q"], s["r"], x_mean, x_std)})
             s = dict(s, **dict(zip(("q", "r"), blend(s["q"], s["r"], q, r, model_cfg.bank_weight))))
+        variants = [("S-CVAE", s["q"], s["r"])]
         if gated:          # the network before the gate, then the gated samples (models/ood.py)
             rows.append({"method": UNGATED, "frames": length, "MMPE": None,
                          **transition_metrics(bench, N_PAST, length, s["q"], s["r"], x_mean, x_std)})
             q, r, _, _ = gate_windows(trained.gate, bench, N_PAST - 1, N_PAST + length, s["q"], s["r"], fa)
+            variants = [(UNGATED, s["q"], s["r"]), ("S-CVAE", q, r)]
             s = dict(s, q=q, r=r)
+        sample_table += length_rows(bench, N_PAST, length, x_mean, x_std, variants)
         per_window += window_ratios(bench, N_PAST, length, s["q"], s["r"])
         if length == max(lengths):
             longest = s
@@ -105,6 +110,12 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
         if r["method"] == "S-CVAE":
             r["method"] = variant
     md = markdown_table(rows, cols, f"S-CVAE, Table 1 layout ({len(bench)} windows, {NUM_SAMPLES} samples)")
+    for r in sample_table:
+        if r["method"] == "S-CVAE":
+            r["method"] = variant
+    md += "\n\n" + markdown_table(sample_table, SAMPLE_COLUMNS + RATIO_COLUMNS,
+                                  f"S-CVAE as a generative model: {NUM_SAMPLES} samples per keyframe pair (APD in m, "
+                                  f"pairwise / mean / best in cm, ratios to Slerp's error)")
     official = official_rows(trained, bench, x_mean, x_std, variant)
     vel = "with" if trained.cfg.model.uses_past_frame else "without"
     md += "\n\n" + markdown_table(official, ("L2Q", "L2P", "NPSS"),
@@ -139,6 +150,10 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
         records += flat_rows([r for r in rs if r["method"] == UNGATED], table, data, model="scvae",
                              variant=f"{run_.preset}, network alone (no gate)")
     records += wc
+    for method, model, var in (("Slerp", "slerp", ""), (variant, "scvae", run_.preset),
+                               (UNGATED, "scvae", f"{run_.preset}, network alone (no gate)")):
+        records += flat_rows([r for r in sample_table if r["method"] == method], "samples", data, model=model,
+                             variant=var)
     return {"markdown": md, "rows": records, "table": rows, "step": trained.step, "source": source,
             "windows": len(bench), "plots": [plot]}
 

@@ -51,6 +51,18 @@ LaFAN1 at 3,000 steps it adds about 1 % to the bank alone and loses to the blend
 
 ``data.mirror`` (off in every preset) adds every training window's left-right mirror image
 (:meth:`~inbetween_jax.data.windows.MotionWindows.mirrored`): twice the windows, a body's motion again.
+``data.tempo`` (off in every preset; e.g. ``data.tempo=0.8,1.25``) adds, for each speed ``s``, the training files
+read at ``fps / s`` and played at ``fps`` (``s`` > 1 faster): walks at other paces, the same real motion.
+``data.balance`` (off in every preset) draws training windows with weight ``n_g ** -balance`` (``n_g``: the
+windows of their CMU activity group, :func:`inbetween_jax.data.activities.activity_group`): 1 balances the groups,
+0.5 halves their imbalance on a log scale.
+
+``model.motion_latent`` (off in ``paper`` / ``cpu``; :mod:`inbetween_jax.models.scvae.motion_latent`) adds one latent
+per transition whose posterior sees the true in-between and whose prior is learned from the keyframes; the decoder
+gets it beside z.  The paper's per-step z comes from an encoder that only sees generated frames, so it can carry
+nothing and ten samples come out the same.  ``loss.motion_free_bits`` sets how many nats per dimension it may carry
+for free; ``loss.prior_path`` also trains the fill from the prior's mean.  ``model.motion_temperature`` and
+``model.motion_spread`` shape the draws at inference (docs/results/scvae.md, "Samples that differ").
 
 ``model.deferred_wgrad`` is a speed switch only (the largest weight gradients as one matmul after the scan, see
 :mod:`inbetween_jax.models.scvae.deferred_grads`); it does not change the losses.
@@ -105,6 +117,10 @@ class ModelConfig:
     bank_tau: float = 0.0          # inference: > 0 weights the k by exp(-(d - d1) / (tau d1)); 0: uniform
     bank_base: bool = False        # residual base = the bank's k-nearest transition (bank_k, bank_tau), not Slerp
     ood_gate: bool = False         # inference: blend toward Slerp / lerp as the keyframes leave the training motion
+    motion_latent: int = 0         # > 0: a per-transition latent of this size, posterior sees the gap (.motion_latent)
+    motion_hidden: int = 128       # its posterior / prior MLP width
+    motion_spread: int = 1         # sampling: > 1 picks the N motion draws far apart among this x N prior draws
+    motion_temperature: float = 1.0  # sampling: the prior's standard deviation scaled by this (0: its mean)
                                    # (the run folder's ood.npz, models/ood.py; on in the shipped weights)
 
     @property
@@ -126,6 +142,8 @@ class DataConfig:
     bucket: int = 0                # > 0: scan length rounded up to a multiple of this (cheaper short stages)
     window: int = 0                # training window frames (0: the source's default, 50 at offset 20)
     mirror: bool = False           # add every training window's left-right mirror image (not the paper)
+    tempo: tuple = ()              # extra copies of the training files played at these speeds (not the paper)
+    balance: float = 0.0           # window weight ~ (its activity group's window count)^-balance (0: uniform)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -141,6 +159,9 @@ class LossConfig:
     phase: float = 1.0             # phase-network regression loss (its own parameters only)
     kl_reduce: str = "sum"         # "sum" over latent dimensions (paper) or "mean"
     free_bits: float = 0.0         # nats per latent dimension not penalised (0: plain KL)
+    alpha_motion: float = 1.0      # weight of the motion latent's KL(q || p) term (model.motion_latent > 0)
+    motion_free_bits: float = 0.5  # nats per motion-latent dimension the posterior carries at no cost
+    prior_path: bool = False       # motion latent: also roll out each window from the prior's mean (2x the batch)
 
 
 # the CPU-sized model of the ``cpu`` (paper's method) and ``improved`` presets, and their shared budget

@@ -20,6 +20,7 @@ import jax.numpy as jnp
 
 from inbetween_jax.geometry import quat_normalize
 from inbetween_jax.models.scvae import layers as nn
+from inbetween_jax.models.scvae import motion_latent as ML
 from inbetween_jax.models.scvae.base_path import base_path, interpolation_path  # noqa: F401 (re-exported)
 from inbetween_jax.models.scvae.features import (PHASE_DIM, align_sign, dims, offset_features, reverse_time,
                                                  state_features)
@@ -49,7 +50,7 @@ def init_generator(f: nn.ParamFactory, cfg, num_joints: int) -> dict:
         enc["lstm"] = nn.init_lstm(f, 3 * o, cfg.lstm_hidden)
     else:
         enc["mlp"] = nn.init_mlp(f, (3 * o, cfg.lstm_hidden))
-    dec_in = cfg.latent_dim + (3 if cfg.decoder_target else 2) * o
+    dec_in = cfg.latent_dim + cfg.motion_latent + (3 if cfg.decoder_target else 2) * o
     n_exp = cfg.num_experts if cfg.phase_moe else 1
     dec = {"lstm": nn.init_lstm(f, dec_in, cfg.dec_lstm_hidden),
            "experts": nn.init_moe(f, (cfg.dec_lstm_hidden,) + tuple(cfg.expert_hidden) + (d["out"],), n_exp,
@@ -147,12 +148,15 @@ def decode(p: dict, cfg, carry, z, embs: tuple, cur: dict, stats: dict, base=Non
 
 
 def generator_step(p: dict, cfg, carry, cur: dict, tgt: dict, tta, gamma, key, stats: dict, base=None, taps=None,
-                   rec=None):
+                   rec=None, motion=None):
     """f_{i+1} = G(f_i | f_target).  Returns (new_carry, next_frame (with phase), kl (B, Z)).
     ``base``: the interpolated frame for the residual decoder; ``taps`` / ``rec``: deferred weight
-    gradients (see :func:`rollout`)."""
+    gradients (see :func:`rollout`); ``motion`` (B, M): the transition's motion latent
+    (:mod:`.motion_latent`), given to the decoder beside z."""
     enc_carry, z, kl, s_emb, t_emb, o_emb = encode(p["enc"], cfg, carry["enc"], cur, tgt, tta, gamma, key, stats,
                                                    taps, rec)
+    if motion is not None:
+        z = jnp.concatenate([z, motion], -1)
     embs = (s_emb, t_emb, o_emb) if cfg.decoder_target else (s_emb, t_emb)
     dec_carry, nxt = decode(p["dec"], cfg, carry["dec"], z, embs, cur, stats, base, taps, rec)
     nxt["phase"] = phase_step(jax.lax.stop_gradient(p["phase"]), cur, stats)
@@ -185,7 +189,7 @@ def _select(pred, a: dict, b: dict) -> dict:
 
 
 def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, key, max_length: int,
-            taps=None):
+            taps=None, motion=None):
     """Generate the transition between two keyframes ``length`` frames apart (L in the paper).
 
     start / target: frames at times 0 and L (``v``, the root's displacement from the previous frame, used only
@@ -207,6 +211,9 @@ def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, k
     """
     steps = num_scan_steps(cfg, max_length)
     b = start["q"].shape[0]
+    if cfg.motion_latent and motion is None:
+        key, km = jax.random.split(key)
+        motion = ML.draw(*ML.prior(params["fwd"]["motion"], stats, start, target, length, cfg.tta_max), km)
     params = {name: pack_generator(g) for name, g in params.items()}   # once, outside the scan
     h, k = split_sizes(length, cfg.buffer_k)
     zero_v = jnp.zeros_like(start["r"])
@@ -247,7 +254,7 @@ def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, k
         tf = jnp.minimum(n + 1, max_length)
         base_f = {"q": base_q[:, tf], "r": base_r[:, tf]}
         cf, nxt_f, kl_f = generator_step(params["fwd"], cfg, cf, cur_f, tgt_f, tta_f * ones, gam_f * ones, kf, stats,
-                                         base_f, tap.get("fwd"), rec_f)
+                                         base_f, tap.get("fwd"), rec_f, motion)
         out = {"fwd": nxt_f, "kl_fwd": kl_f}
         if cfg.bidirectional:
             tgt_b = _select(aligned, reverse_time(nxt_f), reverse_time(s0))
@@ -255,7 +262,7 @@ def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, k
             tb = jnp.clip(length - 1 - n, 0, max_length)
             base_b = {"q": base_q[:, tb], "r": base_r[:, tb]}
             cb, nxt_b, kl_b = generator_step(params["bwd"], cfg, cb, cur_b, tgt_b, tta_b * ones, gam_f * ones, kb,
-                                             stats, base_b, tap.get("bwd"), rec_b)
+                                             stats, base_b, tap.get("bwd"), rec_b, motion)
             out.update(bwd=nxt_b, kl_bwd=kl_b)
             cur_b = nxt_b
         rec = {"fwd": rec_f, "bwd": rec_b} if tap else {}
@@ -341,11 +348,19 @@ def sample(params: dict, cfg, stats: dict, start: dict, target: dict, length, ke
 
     Latent pair search (paper, test time; ``cfg.search`` > 1, bi-directional model): each of the N samples
     draws ``cfg.search`` latent pairs (one more vmapped axis) and keeps, per keyframe pair, the one whose two
-    generators meet best (smallest :func:`seam_mismatch`)."""
-    one = lambda kk: rollout(params, cfg, stats, start, target, length, kk, max_length)
+    generators meet best (smallest :func:`seam_mismatch`).  With a motion latent (``cfg.motion_latent``) each
+    sample draws one from the learned prior (:func:`.motion_latent.spread_draws`, ``cfg.motion_spread``),
+    shared by its candidates, so the search picks the per-step noise and keeps the sample's motion."""
+    motions = None
+    if cfg.motion_latent:
+        mu, lv = ML.prior(params["fwd"]["motion"], stats, start, target, length, cfg.tta_max)
+        motions = ML.spread_draws(mu, lv, jax.vmap(lambda k: jax.random.fold_in(k, 1))(keys), cfg.motion_spread,
+                                  cfg.motion_temperature)
+    one = lambda kk, m: rollout(params, cfg, stats, start, target, length, kk, max_length, motion=m)
     if cfg.search <= 1 or not cfg.bidirectional:
-        return jax.vmap(one)(keys)
-    cand = jax.vmap(jax.vmap(one))(jax.vmap(lambda kk: jax.random.split(kk, cfg.search))(keys))   # (N, C, B, ...)
+        return jax.vmap(one)(keys, motions)
+    cand = jax.vmap(lambda ks, m: jax.vmap(lambda kk: one(kk, m))(ks))(
+        jax.vmap(lambda kk: jax.random.split(kk, cfg.search))(keys), motions)                   # (N, C, B, ...)
     best = jnp.argmin(cand["seam"], axis=1)                                                      # (N, B)
 
     def pick(x):   # (N, C, B, ...) -> (N, B, ...)
@@ -358,7 +373,10 @@ def sample(params: dict, cfg, stats: dict, start: dict, target: dict, length, ke
 
 
 def init_params(key, cfg, num_joints: int) -> dict:
-    """{"fwd": generator, "bwd": generator} with independent parameters."""
+    """{"fwd": generator, "bwd": generator} with independent parameters (the forward one also holds the motion
+    latent's networks, ``"motion"``, when ``cfg.motion_latent`` > 0)."""
     f = nn.ParamFactory()
     tree = {"fwd": init_generator(f, cfg, num_joints), "bwd": init_generator(f, cfg, num_joints)}
+    if cfg.motion_latent:     # posterior and prior of the transition's motion latent, kept with the forward one
+        tree["fwd"]["motion"] = ML.init_motion_nets(f, cfg, num_joints)
     return f.materialize(tree, key)

@@ -12,6 +12,7 @@ nested dicts of arrays; ``stats`` is :func:`~inbetween_jax.models.scvae.features
 """
 from __future__ import annotations
 
+import dataclasses
 import os
 
 import jax
@@ -21,6 +22,7 @@ import optax
 
 from inbetween_jax.models.scvae import losses as L
 from inbetween_jax.models.scvae import model as M
+from inbetween_jax.models.scvae import motion_latent as ML
 from inbetween_jax.data.windows import MotionWindows
 from inbetween_jax.models.scvae.bank import BANK_FILE, TransitionBank, check_mirror, knn_base_path
 from inbetween_jax.models.scvae.deferred_grads import add_deferred_weight_grads, make_taps
@@ -29,7 +31,7 @@ from inbetween_jax.models.spec import Training
 from inbetween_jax.train.optim import make_optimizer
 
 __all__ = ["load_data", "make_training", "make_init_fn", "make_train_step", "batch_fn_factory", "make_batch",
-           "split_batch", "generator_loss", "transition_length", "scan_length"]
+           "group_weights", "split_batch", "generator_loss", "transition_length", "scan_length"]
 
 
 def load_data(cfg, source: str, split: str = "train") -> TrainData:
@@ -47,6 +49,7 @@ def load_data(cfg, source: str, split: str = "train") -> TrainData:
                          f"data.trans_max={cfg.data.trans_max} (at most {windows.window - 2})")
     ws = window_settings(source, split)
     forward = ws["forward_axis"] or tuple(windows.skeleton.forward_axis())
+    windows = _with_tempo_copies(windows, source, split, cfg.data.tempo, cfg.data.window or None)
     if cfg.data.mirror:
         check_mirror(windows.skeleton, forward, source, "data.mirror")
         windows = MotionWindows.concatenate([windows, windows.mirrored()])
@@ -64,6 +67,23 @@ def load_data(cfg, source: str, split: str = "train") -> TrainData:
                     "windows": len(windows), "window_frames": windows.window},
         extra={"lafan1": bool(is_lafan1(source)), "forward_axis": [float(x) for x in forward],
                "contact_velfactor": float(ws["contact_velfactor"])}, bank=bank)
+
+
+def _with_tempo_copies(windows: MotionWindows, source: str, split: str, tempo, window) -> MotionWindows:
+    """``windows`` plus, for each speed ``s`` of ``tempo`` (``data.tempo``), the split's files read at
+    ``fps / s`` and played at ``fps``: the same real motion ``s`` times faster.
+
+    Raises:
+        ValueError: a speed that is not positive (one line).
+    """
+    if not tempo:
+        return windows
+    if any(not float(s) > 0 for s in tempo):
+        raise ValueError(f"data.tempo: speeds must be positive, got {list(tempo)}")
+    from inbetween_jax.data import load_dataset
+    copies = [dataclasses.replace(load_dataset(source, split, window=windows.window, fps=windows.fps / float(s)),
+                                  fps=windows.fps) for s in tempo]
+    return MotionWindows.concatenate([windows] + copies)
 
 
 def make_training(cfg, data: TrainData) -> Training:
@@ -136,6 +156,7 @@ def batch_fn_factory(data: TrainData, cfg):
 
     vel = cfg.model.uses_past_frame
     bank = data.bank
+    weights = group_weights(data.names, cfg.data.balance) if cfg.data.balance else None
     own_clip = bank.clip_of([n.split("@", 1)[0] for n in data.names]) if bank is not None else None
 
     def batch_fn(step, key):
@@ -144,7 +165,8 @@ def batch_fn_factory(data: TrainData, cfg):
         length = transition_length(step, cfg, len(data)) + 1
         if cfg.data.length_mode == "mixed":   # any length up to the current maximum, one per batch
             length = int(rng.integers(cfg.data.trans_start + 1, length + 1))
-        idx = rng.integers(0, len(data), batch_size)
+        idx = rng.choice(len(data), batch_size, p=weights) if weights is not None else rng.integers(0, len(data),
+                                                                                                      batch_size)
         starts = rng.integers(int(vel), window - length, batch_size)
         batch = make_batch(data, idx, starts, length, scan_length(length, cfg), vel)
         if bank is not None:      # the window's own file is never retrieved: the bank as on unseen motion
@@ -155,6 +177,16 @@ def batch_fn_factory(data: TrainData, cfg):
         return batch
 
     return batch_fn
+
+
+def group_weights(names, balance: float) -> np.ndarray:
+    """Sampling probabilities of training windows named ``names`` (``"<file stem>@<frame>"``): each window
+    weighs ``n_g ** -balance``, ``n_g`` the number of windows of its activity group (``data.balance``)."""
+    from inbetween_jax.data.activities import activity_group
+    groups = [activity_group(n.split("@", 1)[0]) for n in names]
+    count = {g: groups.count(g) for g in set(groups)}
+    w = np.array([count[g] ** -float(balance) for g in groups], np.float64)
+    return w / w.sum()
 
 
 def split_batch(batch: dict):
@@ -196,7 +228,19 @@ def generator_loss(params, disc, cfg, stats, batch, key, parents, max_length, ta
     mcfg, lcfg = cfg.model, cfg.loss
     start, target, gt_f, gt_b = split_batch(batch)
     length = batch["length"]
-    res = M.rollout(params, mcfg, stats, start, target, length, key, max_length, taps)
+    motion, m = None, {}
+    if mcfg.motion_latent:   # the transition's motion latent from the posterior, which sees the true gap
+        base_q, base_r = M.base_path(start, target, length, max_length, mcfg.base_velocity, mcfg.base_damping)
+        mp = params["fwd"]["motion"]
+        post = ML.posterior(mp, stats, gt_f, base_q, base_r, length)
+        motion = ML.draw(*post, jax.random.fold_in(key, 1))
+        prior = ML.prior(mp, stats, start, target, length, mcfg.tta_max)
+        motion_term, m["kl_motion"] = ML.motion_kl_terms(post, prior, lcfg.motion_free_bits)
+        if lcfg.prior_path:   # the same windows again from the prior's mean: the zero-temperature fill stays accurate
+            start, target, gt_f, gt_b = (jax.tree.map(lambda x: jnp.concatenate([x, x]), d)
+                                         for d in (start, target, gt_f, gt_b))
+            motion = jnp.concatenate([motion, prior[0]])
+    res = M.rollout(params, mcfg, stats, start, target, length, key, max_length, taps, motion)
     if mcfg.bidirectional:   # one FK call for both generators
         both = L.fk_positions(jnp.concatenate([res["fwd"]["q"], res["bwd"]["q"]]),
                               jnp.concatenate([res["fwd"]["r"], res["bwd"]["r"]]), stats, parents)
@@ -205,7 +249,6 @@ def generator_loss(params, disc, cfg, stats, batch, key, parents, max_length, ta
         pos_f = L.fk_positions(res["fwd"]["q"], res["fwd"]["r"], stats, parents)
     lf = L.direction_losses(res["fwd"], pos_f, res["kl_fwd"], res["valid"], gt_f, stats, lcfg)
     ph = L.phase_loss(params["fwd"]["phase"], gt_f, length, stats)
-    m = {}
     if mcfg.bidirectional:
         lb = L.direction_losses(res["bwd"], pos_b, res["kl_bwd"], res["valid"], gt_b, stats, lcfg)
         ph = 0.5 * (ph + L.phase_loss(params["bwd"]["phase"], gt_b, length, stats))
@@ -217,6 +260,8 @@ def generator_loss(params, disc, cfg, stats, batch, key, parents, max_length, ta
     loss = d["state"] + lcfg.alpha_kl * d.pop("kl_term") + lcfg.alpha_fk * d["fk"] + lcfg.phase * ph
     if mcfg.bidirectional and mcfg.stitch_loss:
         loss = loss + lcfg.alpha_stitch * stitch
+    if motion is not None:
+        loss = loss + lcfg.alpha_motion * motion_term
     lg = jnp.float32(0.0)
     if mcfg.discriminators:
         fake = L.disc_features(res["out"], stats)
@@ -237,7 +282,8 @@ def make_train_step(cfg, parents: tuple, max_length: int | None = None):
         stats = state["stats"]
         max_length = batch["q"].shape[1] - 1   # static: one compile per scan bucket (:func:`scan_length`)
         if cfg.model.deferred_wgrad:   # largest weight gradients as one matmul each after the scan
-            taps = make_taps(state["params"], cfg.model, batch["q"].shape[0], M.num_scan_steps(cfg.model, max_length))
+            rows = batch["q"].shape[0] * (2 if cfg.model.motion_latent and cfg.loss.prior_path else 1)
+            taps = make_taps(state["params"], cfg.model, rows, M.num_scan_steps(cfg.model, max_length))
             grad_fn = jax.value_and_grad(generator_loss, argnums=(0, 8), has_aux=True)
             (loss, (metrics, out, recs)), (g, g_taps) = grad_fn(state["params"], state["disc"], cfg, stats, batch,
                                                                 key, parents, max_length, taps)
