@@ -2,7 +2,8 @@
 rate: each file is matched to the run's joints by name and resampled, as infill does), against the plain
 baselines computed independently here: Slerp / lerp of the keyframes (S-CVAE) and straight-line interpolation of
 the global joint positions across the gap (CAE).  Gaps every ``--stride`` frames; per-gap ratios summarised
-(median, 90th percentile, maximum, share > 1.10x) overall and per activity group.
+(median, 90th percentile, maximum, share > 1.10x) overall and per activity group, and the CAE's foot lift-offs
+per gap against the capture's and the straight line's (does a walking fill step? ``metrics/steps.py``).
 
     python experiments/infill_check.py FILE.bvh ... [--scvae-frames 20,30] [--cae-seconds 1,2]
 """
@@ -16,6 +17,7 @@ from inbetween_jax.data.activities import activity_group
 from inbetween_jax.data.retarget import prepare
 from inbetween_jax.evaluation.worst_case import summarise
 from inbetween_jax.geometry import forward_kinematics
+from inbetween_jax.metrics.steps import lift_offs
 from inbetween_jax.models.cae.infer import load as load_cae, process_motion
 from inbetween_jax.models.scvae import infer as scvae
 from inbetween_jax.models.scvae.gate import slerp_base
@@ -56,7 +58,10 @@ for path in a.files:
             w = (np.arange(1, g + 1) / (g + 1))[:, None, None]
             lin = gp[lo - 1] + w * (gp[lo + g] - gp[lo - 1])
             err = np.linalg.norm(pos[lo:lo + g] - gp[lo:lo + g], axis=-1).mean()
-            res["cae"].append((group, g, err / np.linalg.norm(lin - gp[lo:lo + g], axis=-1).mean(), None))
+            feet, span = cm_m.skeleton.foot_joints(), slice(lo - 1, lo + g + 1)
+            steps = [float(lift_offs(x, (feet[0], feet[2]))) for x in (pos[span], gp[span], np.concatenate(
+                [gp[lo - 1:lo], lin, gp[lo + g:lo + g + 1]]))]
+            res["cae"].append((group, g, err / np.linalg.norm(lin - gp[lo:lo + g], axis=-1).mean(), steps))
 for model, rows in res.items():
     print(f"{model} ({len(rows)} gaps of {os.path.basename(a.files[0])} ...):")
     for grp in ["all"] + sorted({r[0] for r in rows}):
@@ -64,3 +69,6 @@ for model, rows in res.items():
         if s["windows"]:
             print(f"  {grp:12s} n={s['windows']:3d} mean {s['mean']:.3f} median {s['median']:.3f} p90 {s['p90']:.3f} "
                   f"max {s['max']:.3f} share>1.10 {100 * s['share_worse_10pct']:.0f} %")
+        if model == "cae" and s["windows"]:
+            st = np.mean([r[3] for r in rows if grp == "all" or r[0] == grp], 0)
+            print(f"  {'':12s} lift-offs per gap: fill {st[0]:.2f}, capture {st[1]:.2f}, straight line {st[2]:.2f}")
