@@ -61,6 +61,19 @@ def test_calibration_gates_the_windows_that_lose():
     assert np.all(gate2.weight(scores) == 1.0) and s2["mean"] == pytest.approx(0.8)
 
 
+def test_calibration_is_not_fooled_by_rounding_in_a_gated_groups_ratio():
+    """A group gated fully back to its base has ratio 1 up to a few ulp (equal errors divided); the limit
+    'every group's mean at most 1' must still hold for it, or every gate fails and the fallback closes it."""
+    scores = np.r_[np.linspace(0.1, 0.5, 50), np.linspace(0.9, 1.0, 30)]
+    learned = np.r_[np.full(50, 0.7), np.full(30, 1.8)]   # low scores win, high scores lose
+    at = np.stack([1 + w * (learned - 1) for w in BLEND_WEIGHTS], 1)
+    at[:, 0] = 1.0 + 7e-16                                 # the base's own ratio, as measured
+    groups = ["walk"] * 50 + ["jump"] * 30
+    gate, summary = calibrate_gate(scores, at, groups=groups)
+    assert summary["meets_limits"] and summary["mean"] < 0.85
+    assert gate.weight(0.2) == 1.0 and gate.weight(0.95) == 0.0
+
+
 def test_worst_case_summary_against_numpy_and_groups():
     r = np.array([0.5, 0.9, 1.0, 1.2, 2.0])
     s = summarise(r)
