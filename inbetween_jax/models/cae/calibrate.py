@@ -44,7 +44,7 @@ def calibrate(run, source: str, seconds=(1, 2), clip: int = 96, positions=(-12, 
     bank = build_bank(training_contexts(load_data(model.cfg, source, split).bank))
     motions = load_motions(source, val_split_of(split))
     x = proto.test_clips(motions, model.normalizer, clip, clip // 2)
-    names = [m.source for m in motions for s in range(0, m.num_frames - clip + 1, clip // 2)]
+    names = [short_name(m.source) for m in motions for s in range(0, m.num_frames - clip + 1, clip // 2)]
     truth = body_positions(x, model.normalizer, model.num_joints)
     records = []
     for sec in seconds:
@@ -69,3 +69,10 @@ def calibrate(run, source: str, seconds=(1, 2), clip: int = 96, positions=(-12, 
     gate, summary = calibrate_gate([r["score"] for r in records], [r["ratios_at"] for r in records],
                                    groups=[f"{activity_group(r['name'])}/{r['frames']}" for r in records])
     return {"bank": bank, "gate": gate, "summary": dict(summary, lo=gate.lo, hi=gate.hi), "records": records}
+
+
+def short_name(path: str) -> str:
+    """``<folder>/<file>`` of a clip's path: enough to name its CMU trial and activity, and no machine's folders
+    in the calibration file that ships with the weights."""
+    import os
+    return "/".join(os.path.normpath(str(path)).split(os.sep)[-2:])
