@@ -12,7 +12,7 @@ from inbetween_jax.train import apply_overrides
 
 def test_tempo_copies_play_the_same_files_faster_and_slower():
     base = load_dataset(None, "train")
-    both = T._with_tempo_copies(base, "embedded", "train", (2.0, 0.5), None)
+    both = T._with_tempo_copies(base, "embedded", "train", (2.0, 0.5))
     fast = load_dataset(None, "train", window=base.window, fps=base.fps / 2.0)
     assert both.window == base.window and both.fps == base.fps
     assert len(both) == len(base) + len(fast) + len(load_dataset(None, "train", window=base.window,
@@ -25,7 +25,7 @@ def test_tempo_copies_play_the_same_files_faster_and_slower():
     assert 1.85 < (travel(two) / frames(two)) / (travel(one) / frames(one)) < 2.05
     np.testing.assert_array_equal(both.root_pos[:len(base)], base.root_pos)
     with pytest.raises(ValueError, match="data.tempo"):
-        T._with_tempo_copies(base, "embedded", "train", (0.0,), None)
+        T._with_tempo_copies(base, "embedded", "train", (0.0,))
 
 
 def test_balance_weights_give_every_activity_group_its_share():

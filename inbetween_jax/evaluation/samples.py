@@ -23,7 +23,7 @@ import jax
 import numpy as np
 
 from inbetween_jax import metrics
-from inbetween_jax.geometry.kinematics import forward_kinematics, local_positions
+from inbetween_jax.evaluation.lafan1 import _fk
 from inbetween_jax.metrics.steps import lift_offs
 
 __all__ = ["SNAP_FACTOR", "sample_metrics", "pairwise_joint_distance", "per_window_l2p", "reach_share"]
@@ -33,8 +33,8 @@ CM_TO_M = 0.01
 
 
 def _positions(windows, quats, root) -> np.ndarray:
-    lp = local_positions(np.asarray(root, np.float64), windows.skeleton.offsets)
-    return forward_kinematics(np.asarray(quats, np.float64), lp, windows.parents)[1]
+    """Global joint positions (..., J, 3) of local quaternions and root positions on the windows' skeleton."""
+    return _fk(windows, quats, root)[1]
 
 
 def pairwise_joint_distance(pos: np.ndarray) -> float:
@@ -76,10 +76,9 @@ def sample_metrics(windows, n_past: int, n_trans: int, q, r, x_mean, x_std) -> d
     if not (np.all(np.isfinite(q)) and np.all(np.isfinite(r))):
         raise FloatingPointError("samples contain NaN or inf; refusing to score them")
     lo, hi = n_past, n_past + n_trans
-    gt = _positions(windows, windows.local_quats[:, lo:hi], windows.root_pos[:, lo:hi])      # (B, L, J, 3)
+    truth = _positions(windows, windows.local_quats[:, lo - 1:hi + 1], windows.root_pos[:, lo - 1:hi + 1])
+    key, gt, tgt = truth[:, :1], truth[:, 1:-1], truth[:, -1:]       # keyframe, transition (B, L, J, 3), target
     pos = np.stack([_positions(windows, qs, rs) for qs, rs in zip(q, r)])                     # (S, B, L, J, 3)
-    key = _positions(windows, windows.local_quats[:, lo - 1:lo], windows.root_pos[:, lo - 1:lo])
-    tgt = _positions(windows, windows.local_quats[:, hi:hi + 1], windows.root_pos[:, hi:hi + 1])
     s = pos.shape[0]
     full = np.concatenate([np.broadcast_to(key, (s,) + key.shape), pos, np.broadcast_to(tgt, (s,) + tgt.shape)], 2)
     l2p = per_window_l2p(pos, gt, x_mean, x_std)                                              # (S, B)
@@ -88,7 +87,6 @@ def sample_metrics(windows, n_past: int, n_trans: int, q, r, x_mean, x_std) -> d
     contacts = windows.contacts[:, lo - 1:hi + 1]
     slide = [float(metrics.foot_sliding(f, feet, contacts=contacts)) for f in full]
     ankles = (feet[0], feet[2])
-    truth = _positions(windows, windows.local_quats[:, lo - 1:hi + 1], windows.root_pos[:, lo - 1:hi + 1])
     return {"APD": float(metrics.apd(pos, scale=CM_TO_M)) if s > 1 else 0.0,
             "pairwise_cm": pairwise_joint_distance(pos),
             "mean_L2P": float(l2p.mean()), "best_L2P": float(l2p.min(0).mean()),

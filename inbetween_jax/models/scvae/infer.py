@@ -378,8 +378,7 @@ def sample_spread(motions) -> dict:
         return {}
     cm = detect_unit_scale(motions[0].skeleton)
     pos = np.stack([np.asarray(m.global_positions()) for m in motions]) * cm          # (S, T, J, 3)
-    d = np.linalg.norm(pos[:, None] - pos[None], axis=-1).mean((-1, -2))              # (S, S)
-    n = len(motions)
-    each = d.sum(1) / (n - 1)
-    return {"samples_pairwise_cm": round(float(d.sum() / (n * (n - 1))), 3),
+    d = np.linalg.norm(pos[:, None] - pos[None], axis=-1).mean((-1, -2))              # (S, S), zero diagonal
+    each = d.sum(1) / (len(motions) - 1)
+    return {"samples_pairwise_cm": round(float(each.mean()), 3),
             "samples_spread_cm": [round(float(x), 3) for x in each]}

@@ -208,12 +208,14 @@ def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, k
     :func:`~inbetween_jax.models.scvae.deferred_grads.make_taps`: the largest matmuls then leave their weight
     gradient to the caller and the result also holds ``rec_fwd`` / ``rec_bwd``: their inputs per step,
     {name: (S, rows, d_in)}.
+    motion: (B, M) the transition's motion latent (``cfg.motion_latent`` > 0, :mod:`.motion_latent`); None
+    draws it from the learned prior with ``key`` (:func:`.motion_latent.prior_draws`, as :func:`sample` does).
     """
     steps = num_scan_steps(cfg, max_length)
     b = start["q"].shape[0]
     if cfg.motion_latent and motion is None:
         key, km = jax.random.split(key)
-        motion = ML.draw(*ML.prior(params["fwd"]["motion"], stats, start, target, length, cfg.tta_max), km)
+        motion = ML.prior_draws(params["fwd"]["motion"], cfg, stats, start, target, length, km[None])[0]
     params = {name: pack_generator(g) for name, g in params.items()}   # once, outside the scan
     h, k = split_sizes(length, cfg.buffer_k)
     zero_v = jnp.zeros_like(start["r"])
@@ -353,9 +355,8 @@ def sample(params: dict, cfg, stats: dict, start: dict, target: dict, length, ke
     shared by its candidates, so the search picks the per-step noise and keeps the sample's motion."""
     motions = None
     if cfg.motion_latent:
-        mu, lv = ML.prior(params["fwd"]["motion"], stats, start, target, length, cfg.tta_max)
-        motions = ML.spread_draws(mu, lv, jax.vmap(lambda k: jax.random.fold_in(k, 1))(keys), cfg.motion_spread,
-                                  cfg.motion_temperature)
+        motions = ML.prior_draws(params["fwd"]["motion"], cfg, stats, start, target, length,
+                                 jax.vmap(lambda k: jax.random.fold_in(k, 1))(keys))
     one = lambda kk, m: rollout(params, cfg, stats, start, target, length, kk, max_length, motion=m)
     if cfg.search <= 1 or not cfg.bidirectional:
         return jax.vmap(one)(keys, motions)

@@ -29,7 +29,7 @@ from inbetween_jax.models.scvae import layers as nn
 from inbetween_jax.models.scvae.features import align_sign, dims
 
 __all__ = ["init_motion_nets", "time_features", "posterior", "prior", "gaussian_kl", "motion_kl_terms",
-           "draw", "spread_draws"]
+           "draw", "spread_draws", "prior_draws"]
 
 NUM_TIME_FREQS = 4
 
@@ -128,3 +128,10 @@ def spread_draws(mu, lv, keys, spread: int, temperature: float = 1.0):
     _, rest = jax.lax.scan(pick, dmin, None, length=n - 1)
     picked = jnp.concatenate([first[None], rest], 0)                            # (N, B, M)
     return mu + jnp.exp(0.5 * lv) * picked
+
+
+def prior_draws(p: dict, cfg, stats: dict, start: dict, target: dict, length, keys):
+    """The N motion latents (N, B, M) a sampler uses, one per key: :func:`spread_draws` of the learned
+    :func:`prior` with ``cfg.motion_spread`` and ``cfg.motion_temperature`` (cfg: ModelConfig)."""
+    mu, lv = prior(p, stats, start, target, length, cfg.tta_max)
+    return spread_draws(mu, lv, keys, cfg.motion_spread, cfg.motion_temperature)

@@ -49,7 +49,7 @@ def load_data(cfg, source: str, split: str = "train") -> TrainData:
                          f"data.trans_max={cfg.data.trans_max} (at most {windows.window - 2})")
     ws = window_settings(source, split)
     forward = ws["forward_axis"] or tuple(windows.skeleton.forward_axis())
-    windows = _with_tempo_copies(windows, source, split, cfg.data.tempo, cfg.data.window or None)
+    windows = _with_tempo_copies(windows, source, split, cfg.data.tempo)
     if cfg.data.mirror:
         check_mirror(windows.skeleton, forward, source, "data.mirror")
         windows = MotionWindows.concatenate([windows, windows.mirrored()])
@@ -69,7 +69,7 @@ def load_data(cfg, source: str, split: str = "train") -> TrainData:
                "contact_velfactor": float(ws["contact_velfactor"])}, bank=bank)
 
 
-def _with_tempo_copies(windows: MotionWindows, source: str, split: str, tempo, window) -> MotionWindows:
+def _with_tempo_copies(windows: MotionWindows, source: str, split: str, tempo) -> MotionWindows:
     """``windows`` plus, for each speed ``s`` of ``tempo`` (``data.tempo``), the split's files read at
     ``fps / s`` and played at ``fps``: the same real motion ``s`` times faster.
 
@@ -182,9 +182,11 @@ def batch_fn_factory(data: TrainData, cfg):
 def group_weights(names, balance: float) -> np.ndarray:
     """Sampling probabilities of training windows named ``names`` (``"<file stem>@<frame>"``): each window
     weighs ``n_g ** -balance``, ``n_g`` the number of windows of its activity group (``data.balance``)."""
+    from collections import Counter
+
     from inbetween_jax.data.activities import activity_group
     groups = [activity_group(n.split("@", 1)[0]) for n in names]
-    count = {g: groups.count(g) for g in set(groups)}
+    count = Counter(groups)
     w = np.array([count[g] ** -float(balance) for g in groups], np.float64)
     return w / w.sum()
 
