@@ -54,7 +54,7 @@ bench: install $(if $(NO_SPEED),,install-bench)
 	@if [ -d "$(PAIRS)" ]; then $(VENV)/bin/inbetween bench --source $(PAIRS) --models interaction --quick \
 	    --results $(RESULTS)/pairs; else echo "no two-person capture in $(PAIRS): skipping the real-pair bench"; fi
 ifeq ($(NO_SPEED),)
-	$(VENV)/bin/inbetween speed --results $(RESULTS) --torch-ref experiments/torch_scvae.py
+	$(VENV)/bin/inbetween speed --results $(RESULTS)
 endif
 
 demo: install

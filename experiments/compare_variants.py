@@ -2,7 +2,7 @@
 
     python experiments/compare_variants.py RUN_DIR [RUN_DIR ...]
 
-For each run folder (trained with ``train.split=fit-subjects``, then ``experiments/calibrate_gate.py``): the
+For each run folder (trained with ``train.split=fit-subjects``, then ``inbetween calibrate-gate``): the
 checkpoint-selection score (``selection.json``) and, per activity group and length, the per-window error ratio
 to the model's base for the network alone and behind its calibrated gate (``ood_calibration.json``): mean,
 90th percentile and maximum.  Test windows are never read.

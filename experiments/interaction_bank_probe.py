@@ -3,7 +3,7 @@
     python experiments/interaction_bank_probe.py RUN_DIR [--split val] [--source ../shared/data/cmu_pairs]
         [--score] --try model.bank_k=8,model.bank_weight=0.5 [--try ...]
 
-Builds the motion bank of the ``fit`` takes in memory (as ``experiments/build_bank.py`` does, so the validation
+Builds the motion bank of the ``fit`` takes in memory (as ``inbetween build-bank`` does, so the validation
 take is never in it), then for the network alone and for every ``--try`` (comma-separated inference switches of
 :data:`inbetween_jax.models.interaction.bank.SWITCHES`, applied on top of the run's own) prints L2P at 30 / 50
 frames on every window of ``--split`` as a ratio to interpolation with the true gap, and with a guessed gap as a

@@ -40,7 +40,7 @@ def main(argv=None) -> int:
     from inbetween_jax.models.scvae.bank import blend, knn_transition
     t0 = time.time()
     source = resolve_source(a.source)
-    bank = scvae_bank(None, source, a.bank, a.mirror)         # what experiments/build_bank.py writes
+    bank = scvae_bank(None, source, a.bank, a.mirror)         # what inbetween build-bank writes
     windows = (load_dataset(source, "benchmark") if a.windows == "benchmark"
                else load_dataset(source, "val", window=65, offset=20))
     x_mean, x_std = l2p_stats(load_dataset(source, "train").global_pose()[1])

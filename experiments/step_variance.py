@@ -43,8 +43,7 @@ def child(width, reps):
         holder[0], m = step(holder[0], batch, np.int32(0))
         jax.block_until_ready(m["loss"])
     if os.environ.get("SV_TORCH"):
-        sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-        import torch_scvae
+        from inbetween_jax.evaluation.torch_ref import scvae as torch_scvae
         call = torch_scvae.make_step(cfg, data.q.shape[2], data.parents, stats, np_batch, 51)
     rows = []
     for _ in range(reps + 1):

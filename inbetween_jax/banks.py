@@ -8,7 +8,7 @@ so bank settings chosen on the validation split never saw it; the test files are
 (default: the run's own data source), writes ``RUN_DIR/bank.npz`` and applies the ``switches`` (``KEY=VALUE``
 inference switches of the model's bank: its ``SWITCHES``) to ``RUN_DIR/run.json``.  ``mirror`` (S-CVAE banks):
 the bank holds each motion's left-right mirror image too.  RUN_DIR is a training run or a shipped weights
-folder.  Front end: ``experiments/build_bank.py``; the probes build the same banks in memory
+folder.  Front end: ``inbetween build-bank``; the probes build the same banks in memory
 (:func:`interaction_bank`, :func:`scvae_bank`).
 """
 from __future__ import annotations

@@ -89,7 +89,7 @@ def train_model(model: str, preset: str | None = None, overrides: Sequence[str] 
         except ValueError as e:     # e.g. validation motion too short for the score's windows
             if log:
                 log(f"checkpoint selection skipped: {e}; the run opens at its latest checkpoint (select later: "
-                    f"python experiments/select_checkpoint.py {run_dir})")
+                    f"inbetween select-checkpoint {run_dir})")
     if log and logged:
         last = {k: round(v, 5) if isinstance(v, float) else v for k, v in logged[-1].items()}
         log(f"done in {wall:.0f} s; last logged: {last}")

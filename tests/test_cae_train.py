@@ -248,7 +248,7 @@ def test_failed_selection_leaves_the_latest_step_and_says_how_to_select(tmp_path
     run_dir, _ = train_model("cae", "tiny", ["train.num_steps=2", "train.ckpt_every=1", "train.split=fit"],
                              source="embedded", run_dir=str(tmp_path / "run"), progress=False, log=lines.append)
     said = [x for x in lines if "selection skipped" in x]
-    assert len(said) == 1 and "too short" in said[0] and f"select_checkpoint.py {run_dir}" in said[0]
+    assert len(said) == 1 and "too short" in said[0] and f"inbetween select-checkpoint {run_dir}" in said[0]
     assert not os.path.exists(os.path.join(run_dir, "selection.json")) and load_run(run_dir).step == 2
 
 

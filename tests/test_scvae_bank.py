@@ -155,16 +155,16 @@ def test_switches_and_the_bank_in_sample_transitions(bank, tmp_path):
         infer.load(load_run(run_dir))
 
 
-def test_build_bank_script_writes_the_bank_and_the_switches(tmp_path, capsys):
-    import importlib.util
+def test_build_bank_command_writes_the_bank_and_the_switches(tmp_path, capsys):
+    """``inbetween build-bank``: one-line errors that write nothing, the bank and its switches in run.json."""
+    from inbetween_jax.cli import main
     from inbetween_jax.shipped import shipped_dir
     src = shipped_dir("scvae")
     if src is None:
         pytest.skip("no shipped S-CVAE weights")
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    spec = importlib.util.spec_from_file_location("build_bank", os.path.join(root, "experiments", "build_bank.py"))
-    script = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(script)
+
+    class script:                                  # the command line as the tests below call it
+        main = staticmethod(lambda argv: main(["build-bank"] + argv))
     run_dir = str(tmp_path / "scvae")
     shutil.copytree(src, run_dir)
     assert script.main([run_dir, "--source", "embedded", "--set", "model.texture_gain=1"]) == 2

@@ -1,4 +1,4 @@
-"""PyTorch reference of the CAE training step (experiments/torch_cae.py) on real CMU clips: from the same weights
+"""PyTorch reference of the CAE training step (inbetween_jax/evaluation/torch_ref/cae.py) on real CMU clips: from the same weights
 and the same batch and mask its loss equals JAX's and so do the gradients of named convs, for the ``improved``
 (residual + Hermite pre-fill + paste_known + gap weight 4) and ``cpu`` (the paper's method) presets at small
 widths (3 units); its train step runs eagerly with a finite loss.  torch is an optional (benchmark) dependency: without it
@@ -20,11 +20,7 @@ from inbetween_jax.models.cae.config import get_config  # noqa: E402
 from inbetween_jax.models.cae.features import body_frame_features  # noqa: E402
 from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames, joints_mask  # noqa: E402
 
-_SPEC = importlib.util.spec_from_file_location(
-    "torch_cae", os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "experiments",
-                              "torch_cae.py"))
-torch_cae = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(torch_cae)
+from inbetween_jax.evaluation.torch_ref import cae as torch_cae  # noqa: E402
 
 
 @pytest.fixture(autouse=True)

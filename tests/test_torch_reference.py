@@ -1,4 +1,4 @@
-"""PyTorch-eager S-CVAE reference (experiments/torch_scvae.py) on real CMU windows: its generator parameter
+"""PyTorch-eager S-CVAE reference (inbetween_jax/evaluation/torch_ref/scvae.py) on real CMU windows: its generator parameter
 count equals the JAX model's, one training step returns a finite loss, 20 steps on one fixed batch reduce the
 loss and (slow) with JAX's weights and zero latent noise three training steps reproduce JAX's losses.
 torch is an optional (benchmark) dependency: without it the module is skipped."""
@@ -18,11 +18,7 @@ from inbetween_jax.models.scvae import train as T  # noqa: E402
 from inbetween_jax.models.scvae.config import get_config  # noqa: E402
 from inbetween_jax.models.scvae.features import TrainData, compute_stats  # noqa: E402
 
-_SPEC = importlib.util.spec_from_file_location(
-    "torch_scvae", os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "experiments",
-                                "torch_scvae.py"))
-torch_scvae = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(torch_scvae)
+from inbetween_jax.evaluation.torch_ref import scvae as torch_scvae  # noqa: E402
 
 TINY = get_config("tiny")
 

@@ -5,8 +5,11 @@
     inbetween infill --model MODEL [--ckpt RUN] ... --out DIR [--preview] [--gif]         in-between BVH files
     inbetween preview FILE.bvh [--frames a:b] [--gif] [--out DIR]                         draw a BVH file
     inbetween demo                                                                        tiny end-to-end demo
-    inbetween speed [--results DIR] [--torch-ref FILE.py]                                 JAX / PyTorch speed
+    inbetween speed [--results DIR]                                                     JAX / PyTorch speed
     inbetween sweep [--rows full,no_d,...] [--seeds N] [--steps N] [key=value ...]        ablations x seeds
+    inbetween select-checkpoint RUN_DIR [--source S]                                      choose a run's step (validation)
+    inbetween calibrate-gate RUN_DIR [--source S]                                         a run's out-of-distribution gate
+    inbetween build-bank RUN_DIR [--split fit] [--mirror] [--set KEY=VALUE ...]           a run's motion bank
     inbetween ship-weights RUN_DIR [--step N] [--dtype float16|float32] [--why TEXT]      ship a run's weights
 
 Arguments and input files are checked before JAX is imported, so mistakes are reported at once.  Problems with
@@ -34,14 +37,14 @@ class Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from inbetween_jax.cli import (bench_cmd, demo_cmd, infill_cmd, ship_weights_cmd, speed_cmd, sweep_cmd,
-                                   train_cmd)
+    from inbetween_jax.cli import (bench_cmd, demo_cmd, infill_cmd, run_tools_cmd, ship_weights_cmd, speed_cmd,
+                                   sweep_cmd, train_cmd)
     from inbetween_jax.cli.helptext import plain_help
     ap = Parser(prog="inbetween", description=__doc__.split("\n\n")[0].split(": ", 1)[1],
                 formatter_class=argparse.RawDescriptionHelpFormatter,
                 epilog="\n".join(__doc__.split("\n\n")[1].splitlines()) + "\n\n'inbetween COMMAND --help' for each.")
     sub = ap.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
-    for module in (train_cmd, bench_cmd, infill_cmd, demo_cmd, speed_cmd, sweep_cmd, ship_weights_cmd):
+    for module in (train_cmd, bench_cmd, infill_cmd, demo_cmd, speed_cmd, sweep_cmd, run_tools_cmd, ship_weights_cmd):
         module.add_parser(sub)
     plain_help(ap)                                # the texts come from docstrings: no Sphinx markup
     return ap

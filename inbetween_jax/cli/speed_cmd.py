@@ -1,12 +1,13 @@
 """``inbetween speed``: the speed section of ``make bench`` -- compiled JAX against a PyTorch-eager reference.
 
-Times the S-CVAE training step (JAX against the PyTorch-eager reference of ``--torch-ref``), S-CVAE, CAE and
-interaction inference and every compile (:mod:`inbetween_jax.evaluation.speed`); writes ``<results>/speed.md``
-and ``speed.json``, and appends the section to ``<results>/bench.md`` / ``bench.json`` (key ``speed``) when
-``inbetween bench`` wrote them there.  The PyTorch rows need the ``bench`` extra (``pip install
-"inbetween_jax[bench]"``: torch) and ``--torch-ref FILE.py``, a module with ``available()``, ``make_step(...)``
-and ``torch`` (in a clone of the repository: ``experiments/torch_scvae.py``); without them they read "skipped".
-Arguments and files are checked before JAX is loaded.
+Times the S-CVAE and CAE training steps (JAX against the package's PyTorch references,
+:mod:`inbetween_jax.evaluation.torch_ref`, eager and compiled), S-CVAE, CAE and interaction inference and every
+compile (:mod:`inbetween_jax.evaluation.speed`); writes ``<results>/speed.md`` and ``speed.json``, and appends the
+section to ``<results>/bench.md`` / ``bench.json`` (key ``speed``) when ``inbetween bench`` wrote them there.  The
+PyTorch rows need the ``bench`` extra (``pip install "inbetween_jax[bench]"``: torch; ``make bench`` installs it);
+without it they read "skipped".  ``--torch-ref FILE.py`` times another S-CVAE reference module instead (one with
+``available()``, ``make_step(...)`` and ``torch``; a ``cae.py`` beside it is the CAE reference).  Arguments and
+files are checked before JAX is loaded.
 """
 from __future__ import annotations
 
@@ -28,7 +29,7 @@ def add_parser(sub) -> None:
     p.add_argument("--reps", type=int, default=10, help="timed calls per row (default 10)")
     p.add_argument("--quick", action="store_true", help="fewer rows and smaller sizes")
     p.add_argument("--torch-ref", default=None, metavar="FILE.py",
-                   help="the PyTorch-eager S-CVAE reference module (default: none, PyTorch rows skipped)")
+                   help="another PyTorch S-CVAE reference module (default: inbetween_jax.evaluation.torch_ref)")
     p.add_argument("--traceback", action="store_true", help="show the Python traceback of unexpected errors")
     p.set_defaults(run=run)
 
@@ -45,10 +46,14 @@ def _check(args) -> None:
 
 
 def load_torch_ref(path: str | None):
-    """The reference module of ``path`` (imported from its file), or None without a path."""
-    if not path:
-        return None
+    """The reference module of ``path`` (imported from its file); without a path the package's own
+    (:mod:`inbetween_jax.evaluation.torch_ref.scvae`) when torch is installed, else None."""
     import importlib.util
+    if not path:
+        if importlib.util.find_spec("torch") is None:
+            return None
+        from inbetween_jax.evaluation.torch_ref import scvae
+        return scvae
     spec = importlib.util.spec_from_file_location("inbetween_torch_ref", os.path.abspath(path))
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
@@ -63,7 +68,7 @@ def skip_reason() -> str:
     import importlib.util
     if importlib.util.find_spec("torch") is None:
         return 'torch not installed: pip install "inbetween_jax[bench]"'
-    return "no --torch-ref FILE.py"
+    return "no PyTorch reference module"
 
 
 def append_to_bench(out: dict, results_dir: str) -> bool:

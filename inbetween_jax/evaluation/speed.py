@@ -3,10 +3,10 @@
     run(source=None, results_dir="results", reps=10, quick=False, torch_ref=None, torch_skip=None,
         torch_cae=None) -> dict
 
-``torch_ref``: the PyTorch S-CVAE reference module (``experiments/torch_scvae.py``: ``available()``,
-``make_step(..., compile_backend=None)``) or None (its cells say skipped, with ``torch_skip`` as the reason,
-default "torch not installed"); ``torch_cae``: the CAE reference (default ``torch_cae.py`` beside ``torch_ref``'s
-file).  Front end: ``inbetween speed`` (:mod:`inbetween_jax.cli.speed_cmd`; ``make bench``'s last section).
+``torch_ref``: the PyTorch S-CVAE reference module (:mod:`inbetween_jax.evaluation.torch_ref.scvae`:
+``available()``, ``make_step(..., compile_backend=None)``) or None (its cells say skipped, with ``torch_skip`` as
+the reason, default "torch not installed"); ``torch_cae``: the CAE reference (default: the one beside
+``torch_ref``).  Front end: ``inbetween speed`` (:mod:`inbetween_jax.cli.speed_cmd`; ``make bench``'s last section).
 
 Rows (medians of ``--reps`` timed calls, at least 5 for the training steps; every call blocked on its result):
 
@@ -396,13 +396,19 @@ def markdown(r) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _sibling(module, name: str):
-    """Module ``name`` from the folder of ``module``'s file (the CAE reference beside the S-CVAE one), or None."""
-    path = os.path.join(os.path.dirname(os.path.abspath(getattr(module, "__file__", None) or ".")), name + ".py")
-    if module is None or not os.path.isfile(path):
+def _cae_reference(scvae_ref):
+    """The CAE reference beside ``scvae_ref``: the package's :mod:`.torch_ref.cae` for the package's S-CVAE
+    reference, ``cae.py`` in the folder of another reference file, else None."""
+    if scvae_ref is None:
+        return None
+    if getattr(scvae_ref, "__name__", "") == "inbetween_jax.evaluation.torch_ref.scvae":
+        from inbetween_jax.evaluation.torch_ref import cae
+        return cae
+    path = os.path.join(os.path.dirname(os.path.abspath(getattr(scvae_ref, "__file__", None) or ".")), "cae.py")
+    if not os.path.isfile(path):
         return None
     import importlib.util
-    spec = importlib.util.spec_from_file_location("inbetween_" + name, path)
+    spec = importlib.util.spec_from_file_location("inbetween_torch_cae", path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
@@ -412,8 +418,8 @@ def run(source=None, results_dir="results", reps=10, quick=False, torch_ref=None
         torch_cae=None) -> dict:
     """All speed rows; writes ``speed.md`` / ``speed.json`` under ``results_dir`` and returns the record.
     torch_ref: the PyTorch-eager S-CVAE reference module, or None; torch_skip: why there is none (the skipped
-    rows say it; default "torch not installed"); torch_cae: the CAE reference (default: ``torch_cae.py`` beside
-    ``torch_ref``'s file)."""
+    rows say it; default "torch not installed"); torch_cae: the CAE reference (default: the one beside
+    ``torch_ref``, :func:`_cae_reference`)."""
     import jax
 
     from inbetween_jax.data import resolve_source
@@ -433,7 +439,7 @@ def run(source=None, results_dir="results", reps=10, quick=False, torch_ref=None
     r["scvae"] = scvae_rows(src, reps, quick, torch_ref=torch_ref)
     r["cae"] = cae_rows(src, reps, quick)
     r["cae"]["train"] = cae_train_rows(src, reps, ("improved",) if quick else ("improved", "cpu"),
-                                       torch_cae if torch_cae is not None else _sibling(torch_ref, "torch_cae"))
+                                       torch_cae if torch_cae is not None else _cae_reference(torch_ref))
     r["interaction"] = interaction_rows(src, reps, quick)
     r["peak_gflops_after"] = matmul_peak_flops() / 1e9
     r["wall_s"] = time.time() - t0

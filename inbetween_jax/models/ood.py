@@ -246,7 +246,7 @@ def run_gate(run_dir: str, enabled: bool):
     gate = load_gate(run_dir)
     if gate is None:
         raise RunError(f"{run_dir}: model.ood_gate is on but the folder holds no {OOD_FILE} (calibrate it with "
-                       "`python experiments/calibrate_gate.py RUN_DIR`)")
+                       "`inbetween calibrate-gate RUN_DIR`)")
     return gate
 
 

@@ -168,7 +168,7 @@ def load_run_file(run_dir: str, name: str, loader, need: str):
     from inbetween_jax.errors import UserError
     path = os.path.join(run_dir, name)
     if not os.path.isfile(path):
-        raise RunError(f"{run_dir}: {need} needs {name}, which is missing (write it with experiments/build_bank.py)")
+        raise RunError(f"{run_dir}: {need} needs {name}, which is missing (write it with inbetween build-bank)")
     try:
         return loader(path)
     except UserError as e:

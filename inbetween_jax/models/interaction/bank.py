@@ -3,7 +3,7 @@
 Beyond the paper; inference only (the trained network is the same with or without), all off unless a run's
 config turns them on (``model.bank_k``, ``model.bank_weight``, ``model.texture_sigma``,
 ``model.texture_gain``).  The bank holds the training takes' world features (``bank.npz`` in a run or shipped
-weights folder, written by ``experiments/build_bank.py``); a query is a test window's context and keyposes,
+weights folder, written by ``inbetween build-bank``); a query is a test window's context and keyposes,
 each character in its keyframe space as :func:`~.features.keyframe_sample` builds them.
 
 * :func:`knn_inbetween` -- the ``k`` bank windows of the same gap length whose last context frames (positions

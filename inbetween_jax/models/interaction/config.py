@@ -69,7 +69,7 @@ Inference only, off in every preset: the motion bank (:mod:`.bank`; ``model.bank
 blend in the mean of the k nearest training windows, warped onto the gap's ends; ``model.texture_sigma`` /
 ``model.texture_gain`` add the nearest window's high-frequency position band; ``model.bank_guessed`` blends
 the in-between in with a guessed gap too, over the gap the network's rollout takes), read from ``bank.npz`` in the run
-folder (``experiments/build_bank.py`` writes it and sets the switches).  The
+folder (``inbetween build-bank`` writes it and sets the switches).  The
 autoregressive training length (``data.ar_steps``) and the scheduled-sampling curriculum
 (``data.ss_ramp_steps``, ``data.ss_max``) are ``data`` fields: they decide which frames a training sample holds
 and how often predictions are fed back as inputs.

@@ -3,7 +3,7 @@
 Beyond the paper; inference only (the trained network is the same with or without), off unless a run's config
 turns it on (``model.bank_k`` > 0, ``model.bank_weight``, ``model.bank_tau``).  The bank holds the training
 clips' local rotations and root positions (``bank.npz`` in a run or shipped weights folder, written by
-``experiments/build_bank.py``).
+``inbetween build-bank``).
 
 :func:`knn_transition` finds, for two keyframes ``length + 1`` frames apart, the ``k`` training transitions of
 the same length whose two keyframes lie nearest to the query's: every joint's position at both keyframes, each

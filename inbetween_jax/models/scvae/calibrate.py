@@ -1,5 +1,5 @@
 """Calibration of the S-CVAE's out-of-distribution gate (:mod:`.gate`, :mod:`inbetween_jax.models.ood`) on the
-validation split of the run's training data: ``python experiments/calibrate_gate.py RUN_DIR``."""
+validation split of the run's training data: ``inbetween calibrate-gate RUN_DIR``."""
 from __future__ import annotations
 
 import numpy as np

@@ -40,7 +40,7 @@ the model trained on it scored worse on the CMU validation windows than the one 
 
 Inference only, off in every preset: the transition bank (:mod:`inbetween_jax.models.scvae.bank`;
 ``model.bank_k`` / ``model.bank_tau`` / ``model.bank_weight``) blends the samples with the warped mean of the
-k nearest training transitions, read from ``bank.npz`` in the run folder (``experiments/build_bank.py`` writes
+k nearest training transitions, read from ``bank.npz`` in the run folder (``inbetween build-bank`` writes
 it and sets the switches).  It helps where the training motion covers the test motion (LaFAN1) and hurts on
 the CMU test subjects (docs/results/scvae.md, "Transition bank"), so the shipped CMU weights leave it off.
 ``model.bank_base`` (with ``residual``; off in every preset) goes further and trains the network on top of the
