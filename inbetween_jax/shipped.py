@@ -29,7 +29,8 @@ __all__ = ["ENV", "INFERENCE_SWITCHES", "KEEP", "EXACT", "weights_root", "shippe
 ENV = "INBETWEEN_WEIGHTS_DIR"
 # Switches that only change inference (the trained parameters are the same either way): ``export_run(inference=)``.
 INFERENCE_SWITCHES = {"interaction": ("model.refiner", "model.latent_scale", "model.bank_k", "model.bank_weight",
-                                      "model.texture_sigma", "model.texture_gain", "model.bank_guessed", "model.ease_frames"),
+                                      "model.texture_sigma", "model.texture_gain", "model.bank_guessed", "model.ease_frames",
+                                      "model.ood_gate", "model.bank_sample_weight"),
                       "scvae": ("model.search", "model.bank_k", "model.bank_weight", "model.bank_tau", "model.ood_gate",
                                 "model.motion_temperature", "model.motion_spread"),
                       "cae": ("model.mirror_average", "model.ood_gate", "model.root_bound")}

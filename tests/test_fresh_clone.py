@@ -78,7 +78,7 @@ def _first_frames(src: str, n: int, dst) -> str:
     return str(dst)
 
 
-def _held_keyposes(trained, context, keys, frames, samples, seed=0):
+def _held_keyposes(trained, context, keys, frames, samples, seed=0, gate_info=None):
     return np.broadcast_to(keys[None, :, None], (samples, 2, frames) + keys.shape[1:]).copy()
 
 

@@ -82,6 +82,33 @@ def test_apply_bank_switches(bank, pair_windows):
     np.testing.assert_allclose(half[:, :, :, :GAP], expect, atol=1e-5)
 
 
+def test_sampled_mode_gives_each_sample_its_own_captured_window(bank, pair_windows):
+    """``model.bank_sample_weight``: sample 0 is the deterministic fill; sample s >= 1 blends in the s-th nearest
+    window alone (warped), with that window's texture on the rest; one sample is never sampled."""
+    from inbetween_jax.models.interaction.bank import _nearest
+    ctx, kp = pair_windows["x"][:, :, :N_IN], pair_windows["keypose"]
+    B = len(ctx)
+    frames = np.random.default_rng(1).normal(size=(4, B, 2, 40) + ctx.shape[3:]).astype(np.float32)
+    det = dataclasses.replace(ModelConfig(), bank_k=3, bank_weight=0.25)
+    sampled = dataclasses.replace(det, bank_sample_weight=1.0)
+    assert bank_enabled(dataclasses.replace(ModelConfig(), bank_sample_weight=0.5))
+    ref, out = (apply_bank(bank, c, frames, ctx, kp, np.full(B, GAP)) for c in (det, sampled))
+    np.testing.assert_allclose(out[0], ref[0], atol=1e-6)
+    near = _nearest(bank, ctx, kp, GAP, 3)
+    for s in (1, 2, 3):                           # weight 1: the (s-1)-th nearest window itself, warped
+        np.testing.assert_allclose(out[s, :, :, :GAP], knn_inbetween(bank, ctx, kp, GAP, s)[:, :, :GAP] * s -
+                                   (knn_inbetween(bank, ctx, kp, GAP, s - 1) * (s - 1) if s > 1 else 0),
+                                   atol=1e-4)
+    assert near.shape[1] == 3 and np.abs(out[1] - out[2]).mean() > 1e-3          # the samples differ
+    half = apply_bank(bank, dataclasses.replace(det, bank_sample_weight=0.5, texture_sigma=4.0), frames, ctx, kp,
+                      np.full(B, GAP))
+    one = knn_inbetween(bank, ctx, kp, GAP, 1)
+    band = texture(bank, ctx, kp, GAP, 4.0)
+    np.testing.assert_allclose(half[1, :, :, :GAP], 0.5 * frames[1, :, :, :GAP] + 0.5 * one + 0.5 * band, atol=1e-5)
+    single = apply_bank(bank, sampled, frames[:1], ctx, kp, np.full(B, GAP))
+    np.testing.assert_allclose(single[0], ref[0], atol=1e-6)
+
+
 def test_bank_file_round_trip_and_errors(bank, tmp_path):
     path = str(tmp_path / "bank.npz")
     bank.save(path)

@@ -68,7 +68,7 @@ def test_infill_json_spread_of_samples_that_differ_by_a_known_shift():
 
     from inbetween_jax.data import load_motions
     from inbetween_jax.data.features import detect_unit_scale
-    from inbetween_jax.models.scvae.infer import sample_spread
+    from inbetween_jax.evaluation.samples import sample_spread
     m = load_motions(None, "train")[0].slice(0, 20)
     moved = []
     for k in range(3):                                   # root (and so every joint) k units along x

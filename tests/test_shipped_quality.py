@@ -3,9 +3,12 @@
 
 Each check is a subset of the bench's protocol, cheap enough for the default suite: the S-CVAE on the first 24
 Table-1 windows at 30 frames (4 samples; gated, as shipped), the CAE on the time-matched 1 s gap of every test
-clip.  The reference ratios were measured by these same functions on the shipped weights; the tolerance covers
+clip, the interaction model on 24 windows of 30 frames of the salsa test takes (one sample, true gap, gated and
+eased as shipped; needs ../shared/data/cmu_pairs).  The reference ratios were measured by these same functions on the shipped weights; the tolerance covers
 sampling noise, not a regression.
 """
+import os
+
 import numpy as np
 import pytest
 
@@ -13,6 +16,7 @@ from inbetween_jax.shipped import shipped_run
 
 SCVAE_RATIO_30 = 0.992    # L2P / Slerp's, 24 windows, 30 frames, 4 samples (seed 0)
 CAE_RATIO_1S = 0.916      # gap error / linear fill's, time-matched 1 s gap, every test clip
+INTERACTION_RATIO_30 = 0.871  # L2P / interpolation's, 24 salsa test windows, 30 frames, one sample
 TOL = 0.02
 
 
@@ -47,3 +51,23 @@ def test_shipped_cae_keeps_its_ratio_to_linear_fill():
     lin = _time_matched(_baseline("linear"), x, model.normalizer, model.num_joints, fps, None)
     ratio = ours["gaps"][1]["err"][0] / lin["gaps"][1]["err"][0]
     assert ratio == pytest.approx(CAE_RATIO_1S, abs=TOL)
+
+
+PAIRS = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "shared", "data",
+                     "cmu_pairs")
+
+
+@pytest.mark.skipif(not os.path.isdir(PAIRS), reason="shared salsa pairs not beside the repository")
+def test_shipped_interaction_keeps_its_ratio_to_interpolation():
+    from inbetween_jax.evaluation import interaction as proto
+    from inbetween_jax.models.interaction.bench import _model_method, windows_l2p
+    from inbetween_jax.models.interaction.data import load_pairs, split_pairs
+    from inbetween_jax.models.interaction.infer import load
+    trained = load(shipped_run("interaction"))
+    d = trained.cfg.data
+    pairs = load_pairs(PAIRS, d.pair_distance)
+    windows = proto.table1_windows(split_pairs(pairs, "test", tuple(d.split)), d.pos_scale, 24, (30,))
+    stats = proto.l2p_stats(split_pairs(pairs, "train", tuple(d.split)), d.pos_scale)
+    ours = windows_l2p(_model_method(trained), windows, stats, d.n_pred, (30,))[0]
+    base = windows_l2p(proto.interpolation_method, windows, stats, d.n_pred, (30,))[0]
+    assert ours / base == pytest.approx(INTERACTION_RATIO_30, abs=TOL)

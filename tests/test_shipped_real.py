@@ -60,12 +60,18 @@ def test_interaction_infill_without_ckpt_on_the_dancers_files_as_given(tmp_path)
     unit, and one picture holding both dancers."""
     from inbetween_jax.cli import main
     from inbetween_jax.data import read_bvh
+    from inbetween_jax.shipped import shipped_dir
     _shipped_or_skip("interaction")
     out = tmp_path / "out"
     assert main(["infill", "--model", "interaction", "--a", f"{PAIR_A}:400", "--b", f"{PAIR_B}:400",
                  "--key-a", f"{PAIR_A}:600", "--key-b", f"{PAIR_B}:600", "--frames", "49", "--samples", "1",
                  "--out", str(out), "--preview"]) == 0
     assert (out / "sample_00_pair_sheet.png").exists()
+    info = json.load(open(out / "infill.json"))            # the out-of-distribution gate, per window and sample
+    if os.path.exists(os.path.join(shipped_dir("interaction"), "ood.npz")):
+        assert info["ood_score"] > 0 and 0.0 <= info["gate_weight"] <= 1.0
+        assert info["samples_ood"] == [{"ood_score": info["ood_score"], "gate_weight": info["gate_weight"],
+                                        "sample": "sample_00"}]
     for path, name in ((PAIR_A, "sample_00_A.bvh"), (PAIR_B, "sample_00_B.bvh")):
         src, m = read_bvh(path), read_bvh(str(out / name))
         assert m.skeleton.names == src.skeleton.names and m.num_frames == 51
@@ -74,3 +80,25 @@ def test_interaction_infill_without_ckpt_on_the_dancers_files_as_given(tmp_path)
         assert 0.4 < float(np.median(m.root_pos[:, 1])) < 0.9
         np.testing.assert_allclose(m.root_pos[0], src.root_pos[400], atol=1e-3)
         np.testing.assert_allclose(m.root_pos[-1], src.root_pos[600], atol=1e-3)
+
+
+@pytest.mark.skipif(not os.path.exists(PAIR_A), reason="shared salsa pairs not beside the repository")
+def test_interaction_samples_differ_and_infill_json_says_by_how_much(tmp_path):
+    """The sampled mode of the shipped weights: sample 0 is the deterministic fill, the others each blend in
+    another captured window, so they differ by centimetres, not millimetres (``samples_pairwise_cm``)."""
+    from inbetween_jax.cli import main
+    from inbetween_jax.data import read_bvh
+    _shipped_or_skip("interaction")
+    runs = {}
+    for n in (1, 3):
+        out = tmp_path / f"out{n}"
+        assert main(["infill", "--model", "interaction", "--a", f"{PAIR_A}:400", "--b", f"{PAIR_B}:400",
+                     "--key-a", f"{PAIR_A}:600", "--key-b", f"{PAIR_B}:600", "--frames", "40", "--samples", str(n),
+                     "--out", str(out)]) == 0
+        runs[n] = out
+    info = json.load(open(runs[3] / "infill.json"))
+    assert info["samples_pairwise_cm"] > 2.0 and len(info["samples_spread_cm"]) == 3
+    one, first = (read_bvh(str(runs[n] / "sample_00_A.bvh")) for n in (1, 3))
+    np.testing.assert_allclose(first.root_pos, one.root_pos, atol=1e-4)          # sample 0: the deterministic fill
+    other = read_bvh(str(runs[3] / "sample_01_A.bvh"))
+    assert np.abs(other.root_pos - first.root_pos).max() > 0.01                  # 1/128-unit file: > 1.3 cm

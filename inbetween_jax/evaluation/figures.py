@@ -227,6 +227,10 @@ def calibration_figure(records: Sequence[dict], lo: float, hi: float, path, titl
     return os.fspath(path)
 
 
+XLABELS = {"travel": "out-of-distribution score: 1 / (1 + keyframe root travel per frame / c)",
+           "speed": "out-of-distribution score: 1 / (1 + mean joint speed at the last known frame / (1 cm per frame))"}
+
+
 def worst_case_figures(rows: Sequence[dict], results_dir, calibrations: dict | None = None, dpi: int = 100) -> str:
     """The per-window ratio distribution of every model (rows of table ``per_window``, group ``all``; one PNG per
     model, base and split) and the gate calibration figure of each ``calibrations`` entry (model -> path of an
@@ -249,8 +253,7 @@ def worst_case_figures(rows: Sequence[dict], results_dir, calibrations: dict | N
                     cal = json.load(f)
                 name = f"ood_calibration_{model}.png"
                 s = cal["summary"]
-                kw = {"xlabel": "out-of-distribution score: 1 / (1 + keyframe root travel per frame / c)"} \
-                    if s.get("kind") == "travel" else {}
+                kw = {"xlabel": XLABELS[s["kind"]]} if s.get("kind") in XLABELS else {}
                 if calibration_figure(cal["records"], s["lo"], s["hi"], os.path.join(results_dir, name),
                                       f"{model}: validation windows, error ratio against the OOD score", dpi=dpi,
                                       **kw):

@@ -26,7 +26,8 @@ from inbetween_jax import metrics
 from inbetween_jax.evaluation.lafan1 import _fk
 from inbetween_jax.metrics.steps import lift_offs
 
-__all__ = ["SNAP_FACTOR", "sample_metrics", "pairwise_joint_distance", "per_window_l2p", "reach_share"]
+__all__ = ["SNAP_FACTOR", "sample_metrics", "pairwise_joint_distance", "per_window_l2p", "reach_share",
+           "sample_spread"]
 
 SNAP_FACTOR = 2.0
 CM_TO_M = 0.01
@@ -94,3 +95,20 @@ def sample_metrics(windows, n_past: int, n_trans: int, q, r, x_mean, x_std) -> d
             "reach": reach_share(full), "foot_slide_mean": float(np.mean(slide)),
             "foot_slide_worst": float(np.max(slide)), "steps": float(np.mean(lift_offs(full, ankles))),
             "steps_truth": float(np.mean(lift_offs(truth, ankles)))}
+
+
+def sample_spread(motions) -> dict:
+    """How different the samples of one in-between are, for ``infill.json``: ``samples_pairwise_cm`` (mean joint
+    distance between two samples over the frames) and ``samples_spread_cm`` (each sample's mean joint distance to
+    the others: the largest is the most unusual choice).  motions: per sample one Motion, or a tuple of Motions
+    (the characters of a two-person sample, their joints pooled); the same frames in every sample."""
+    from inbetween_jax.data.features import detect_unit_scale
+    if len(motions) < 2:
+        return {}
+    groups = [m if isinstance(m, (tuple, list)) else (m,) for m in motions]
+    cm = detect_unit_scale(groups[0][0].skeleton)
+    pos = np.stack([np.concatenate([np.asarray(m.global_positions()) for m in g], 1) for g in groups]) * cm
+    d = np.linalg.norm(pos[:, None] - pos[None], axis=-1).mean((-1, -2))              # (S, S), zero diagonal
+    each = d.sum(1) / (len(motions) - 1)
+    return {"samples_pairwise_cm": round(float(each.mean()), 3),
+            "samples_spread_cm": [round(float(x), 3) for x in each]}

@@ -23,7 +23,7 @@ import os
 
 import numpy as np
 
-__all__ = ["ContextBank", "TravelScore", "Gate", "build_bank", "calibrate_gate", "gated_ratio", "BLEND_WEIGHTS", "OOD_FILE", "gate_note", "save_gate", "load_gate", "gated_records", "calibrate_run", "CALIBRATION_FILE",
+__all__ = ["ContextBank", "TravelScore", "SpeedScore", "Gate", "build_bank", "calibrate_gate", "gated_ratio", "BLEND_WEIGHTS", "OOD_FILE", "gate_note", "save_gate", "load_gate", "gated_records", "calibrate_run", "CALIBRATION_FILE",
            "run_gate", "calibration_worst_case"]
 
 OOD_FILE = "ood.npz"                              # the bank and gate in a run folder / shipped weights folder
@@ -93,6 +93,22 @@ class TravelScore:
 
     def arrays(self, prefix: str = "travel_") -> dict:
         return {f"{prefix}num_joints": np.int64(self.num_joints), f"{prefix}c": np.float64(self.c)}
+
+
+@dataclasses.dataclass
+class SpeedScore:
+    """A score from how fast the context moves: ``1 / (1 + v / c)`` with ``v`` the first number of each context
+    (the mean joint speed at the last known frame, cm per frame: :func:`inbetween_jax.models.interaction.gate.
+    window_context`).  1 for a still context, 0.5 at ``c``, toward 0 for fast motion: on the validation take the
+    interaction model loses to interpolation where the dancers barely move, and a k-NN distance to the training
+    takes does not predict where it loses (docs/results/gate.md)."""
+    c: float = 1.0
+
+    def score(self, desc) -> np.ndarray:
+        return 1.0 / (1.0 + np.asarray(desc, np.float64)[:, 0] / self.c)
+
+    def arrays(self, prefix: str = "speed_") -> dict:
+        return {f"{prefix}c": np.float64(self.c)}
 
 
 def build_bank(desc, dims: int = 32, k: int = 4, max_items: int = 4000, seed: int = 0) -> ContextBank:
@@ -173,7 +189,7 @@ def gate_note(score: float, weight: float, base: str) -> str:
 
 
 def save_gate(run_dir: str, bank, gate: Gate, summary: dict | None = None) -> str:
-    """Write ``ood.npz`` (the scorer -- a :class:`ContextBank` or :class:`TravelScore` -- + gate thresholds + the
+    """Write ``ood.npz`` (the scorer -- a :class:`ContextBank`, :class:`TravelScore` or :class:`SpeedScore` -- + gate thresholds + the
     calibration summary's numbers) atomically."""
     path = os.path.join(run_dir, OOD_FILE)
     extra = {f"summary_{k}": np.asarray(v) for k, v in (summary or {}).items()
@@ -196,8 +212,12 @@ def load_gate(run_dir: str):
         return None
     try:
         with np.load(path) as z:
-            scorer = (TravelScore(int(z["travel_num_joints"]), float(z["travel_c"])) if "travel_c" in z.files
-                      else ContextBank.from_arrays(z))
+            if "travel_c" in z.files:
+                scorer = TravelScore(int(z["travel_num_joints"]), float(z["travel_c"]))
+            elif "speed_c" in z.files:
+                scorer = SpeedScore(float(z["speed_c"]))
+            else:
+                scorer = ContextBank.from_arrays(z)
             return scorer, Gate(float(z["gate_lo"]), float(z["gate_hi"]))
     except (OSError, ValueError, KeyError) as e:
         raise RunError(f"{path}: not a readable out-of-distribution gate ({type(e).__name__}: {e})") from None
@@ -250,9 +270,8 @@ def run_gate(run_dir: str, enabled: bool):
     return gate
 
 
-def calibration_worst_case(run_dir: str, gate, model: str, base: str) -> list:
-    """Worst-case rows (:func:`inbetween_jax.evaluation.worst_case.worst_case_rows`, split "validation
-    subjects") of the gate's calibration windows in ``run_dir/ood_calibration.json``, scored at the weights the
+def calibration_worst_case(run_dir: str, gate, model: str, base: str, split: str = "validation subjects") -> list:
+    """Worst-case rows (:func:`inbetween_jax.evaluation.worst_case.worst_case_rows`, split ``split``) of the gate's calibration windows in ``run_dir/ood_calibration.json``, scored at the weights the
     gate ((scorer, Gate)) gives them; [] without a gate or that file."""
     import json
     from inbetween_jax.evaluation.worst_case import worst_case_rows
@@ -261,5 +280,4 @@ def calibration_worst_case(run_dir: str, gate, model: str, base: str) -> list:
         return []
     with open(path) as f:
         cal = json.load(f)
-    return worst_case_rows(gated_records(cal, gate[1]), "per_window", cal.get("source", "cmu"), model, base,
-                           "validation subjects")
+    return worst_case_rows(gated_records(cal, gate[1]), "per_window", cal.get("source", "cmu"), model, base, split)

@@ -38,7 +38,7 @@ __all__ = ["BANK_FILE", "SWITCHES", "MATCH_FRAMES", "FADE", "MotionBank", "gauss
 
 BANK_FILE = "bank.npz"
 SWITCHES = ("model.bank_k", "model.bank_weight", "model.texture_sigma", "model.texture_gain",
-            "model.bank_guessed")                                             # inference only
+            "model.bank_guessed", "model.bank_sample_weight")                                             # inference only
 MATCH_FRAMES = 3          # last context frames whose joint positions are matched
 VELOCITY_WEIGHT = 5.0     # weight of the last context frame's velocity (m / frame) in the match
 FADE = 4                  # texture fade-in / fade-out frames at either end of the gap
@@ -228,7 +228,8 @@ def arrival_gaps(frames, keypose, threshold_m: float, pos_scale: float, lo: int 
 
 def bank_enabled(model_cfg) -> bool:
     """Whether a model config asks for the bank at inference."""
-    return model_cfg.bank_k > 0 and model_cfg.bank_weight > 0 or model_cfg.texture_sigma > 0
+    return (model_cfg.bank_k > 0 and model_cfg.bank_weight > 0 or model_cfg.texture_sigma > 0
+            or getattr(model_cfg, "bank_sample_weight", 0.0) > 0)
 
 
 def apply_bank(bank: MotionBank, model_cfg, frames, context, keypose, gaps, feet=()) -> np.ndarray:
@@ -238,33 +239,54 @@ def apply_bank(bank: MotionBank, model_cfg, frames, context, keypose, gaps, feet
     (B, 2, J, 9); gaps (B,) the gap each rollout aims at; feet: foot joint indices, whose texture is faded out
     near the floor: its weight is 0 where the foot, with or without texture, is at or below the foot-skating
     height H = 2.5 cm and 1 from 2 H, so a foot the rollout holds above H is never textured below it.  Frames
-    past a window's gap are left as they are.  -> (S, B, 2, F, J, 9) float32."""
+    past a window's gap are left as they are.  With ``model.bank_sample_weight`` > 0 and S > 1 (the sampled
+    mode), sample 0 is as above and sample s >= 1 blends in one bank window, the s-th nearest, warped, at that
+    weight, with that window's texture on the rest (``texture_gain`` x (1 - weight)): the samples differ by real
+    captured motion.  -> (S, B, 2, F, J, 9)."""
     out = np.array(frames, np.float32)
     gaps = np.asarray(gaps).astype(int)
     w, k = float(model_cfg.bank_weight), int(model_cfg.bank_k)
     blend, textured = k > 0 and w > 0, model_cfg.texture_sigma > 0
+    ws = float(getattr(model_cfg, "bank_sample_weight", 0.0)) if out.shape[0] > 1 else 0.0
     context, keypose = np.asarray(context, np.float32), np.asarray(keypose, np.float32)
+    floor = SKATING_HEIGHT_CM * bank.pos_scale
     for g in np.unique(gaps):
         sel = np.flatnonzero(gaps == g)
         n = min(int(g), out.shape[3])
-        if n <= 0 or not (blend or textured):
+        if n <= 0 or not (blend or textured or ws > 0):
             continue
         ctx, kp = context[sel], keypose[sel]
-        near = _nearest(bank, ctx, kp, int(g), k if blend else 1)         # one search serves both (nearest first)
+        near = _nearest(bank, ctx, kp, int(g), max(k if blend else 1, out.shape[0] - 1 if ws > 0 else 0))
+        pre = out[:, sel, :, :n].copy()
         if blend:
-            mean = _warped_mean(near, ctx, kp, int(g))[:, :, :n]
+            mean = _warped_mean(near[:, :k], ctx, kp, int(g))[:, :, :n]
             out[:, sel, :, :n] = (1 - w) * out[:, sel, :, :n] + w * mean[None]
         if textured:
             band = model_cfg.texture_gain * _faded_band(near[:, 0], ctx.shape[2], int(g),
                                                         model_cfg.texture_sigma)[:, :, :n]
-            add = np.repeat(band[None], out.shape[0], 0)                         # (S, b, 2, n, J, 9)
-            if len(feet):
-                foot, floor = list(feet), SKATING_HEIGHT_CM * bank.pos_scale
-                h = out[:, sel, :, :n][..., foot, 1]
-                low = np.minimum(h, h + add[..., foot, 1]) / floor                  # the lower of base and textured
-                add[..., foot, :3] *= np.clip(low - 1.0, 0.0, 1.0)[..., None]
-            out[:, sel, :, :n] += add
+            out[:, sel, :, :n] += _foot_safe(np.repeat(band[None], out.shape[0], 0), out[:, sel, :, :n], feet, floor)
+        for s in range(1, out.shape[0] if ws > 0 else 1):          # the sampled mode: one window per sample
+            j = (s - 1) % near.shape[1]
+            one = _warped_mean(near[:, j:j + 1], ctx, kp, int(g))[:, :, :n]
+            out[s, sel, :, :n] = (1 - ws) * pre[s] + ws * one
+            if textured and ws < 1:    # the window brings its own band at weight ws: texture the rest
+                band = (1 - ws) * model_cfg.texture_gain * _faded_band(near[:, j], ctx.shape[2], int(g),
+                                                                     model_cfg.texture_sigma)[:, :, :n]
+                out[s, sel, :, :n] += _foot_safe(band[None], out[s:s + 1, sel, :, :n], feet, floor)[0]
     return out
+
+
+def _foot_safe(add, base, feet, floor: float) -> np.ndarray:
+    """Texture ``add`` (S, b, 2, n, J, 9) with the foot joints' part faded out where the foot of ``base`` (same
+    shape), with or without the texture, is within 2 ``floor`` of the floor (:func:`apply_bank`)."""
+    if not len(feet):
+        return add
+    add = np.array(add, np.float32)
+    foot = list(feet)
+    h = base[..., foot, 1]
+    low = np.minimum(h, h + add[..., foot, 1]) / floor                  # the lower of base and textured
+    add[..., foot, :3] *= np.clip(low - 1.0, 0.0, 1.0)[..., None]
+    return add
 
 
 def ease_into_keypose(frames, keypose, gaps, ease: int) -> np.ndarray:

@@ -104,6 +104,9 @@ def _model_method(trained, use_refiner=None, gap="true", latent_scale=None, use_
         if gap == "true":            # the known gap: bank, then the last frames eased onto the keypose
             if banked:
                 out = apply_bank(trained.bank, cfg.model, out, ctx, b["keypose"], g, feet)
+            if trained.gate is not None and cfg.model.ood_gate:     # toward interpolation (.gate)
+                from inbetween_jax.models.interaction.gate import gate_rollouts
+                out = gate_rollouts(trained.gate, out, ctx, b["keypose"], g)[0]
             return ease_into_keypose(out, b["keypose"], g, cfg.model.ease_frames) if cfg.model.ease_frames else out
         if not banked:
             return out
@@ -325,6 +328,13 @@ def run(source, results_dir: str, run_dir, quick: bool = False) -> dict:
     for (name, L), v in arrivals.items():
         rows += flat_rows([{"method": name, "frames": L, "reached": v["reached"], "median_frames": v["median_frames"]}],
                           table="interaction_arrival", data=data_name, model=groups[name], variant=name)
+    if trained is not None and not constructed:          # the worst case: per-window ratios to interpolation
+        from inbetween_jax.models.interaction.calibrate import per_window_rows
+        from inbetween_jax.models.interaction.samples import bench_rows, sample_table
+        wc, wc_md = per_window_rows(trained, methods[ours][1], windows, data_name)
+        sr, sr_md = bench_rows(sample_table(methods[ours][1], windows, stats, cls[:2]), data_name, ours)
+        rows += wc + sr
+        table += "\n\n" + wc_md + "\n\n" + sr_md
     os.makedirs(results_dir, exist_ok=True)
     with open(os.path.join(results_dir, "interaction_table.md"), "w") as f:
         f.write(table + "\n")

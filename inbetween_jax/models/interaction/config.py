@@ -145,6 +145,10 @@ class ModelConfig:
                                    # own rollout takes (:func:`.bank.arrival_gaps`), not the guess (blend only)
     ease_frames: int = 0           # inference: the last N frames before the keypose take up the jump onto it
                                    # (:func:`.bank.ease_into_keypose`; 0: off, the paper; on in the shipped run)
+    bank_sample_weight: float = 0.0  # inference, sampled mode (more than one sample): sample s >= 1 blends in the
+                                   # s-th nearest bank window alone at this weight, with its texture (0: off)
+    ood_gate: bool = False         # inference: blend toward per-character interpolation as the window's context
+                                   # and keyposes leave the training takes (:mod:`.gate`; ood.npz in the run folder)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -44,6 +44,7 @@ class Trained:
     step: int
     run_dir: str
     bank: MotionBank | None = None    # motion bank (``bank.npz`` in the run folder) when the config uses one
+    gate: tuple | None = None         # (ContextBank, Gate) of ``ood.npz`` when ``model.ood_gate`` is on (:mod:`.gate`)
 
 
 def load(run: Run) -> Trained:
@@ -64,8 +65,9 @@ def load(run: Run) -> Trained:
     target = jax.eval_shape(lambda k: init_state(cfg, J, k), jax.random.key(0))
     state = restore_state(run, target)
     skel = Skeleton.from_dict(run.skeleton) if run.skeleton else None
+    from inbetween_jax.models.ood import run_gate
     return Trained(cfg, state["params"], J, fa, skel, int(run.step), run.run_dir,
-                   load_bank(run.run_dir, cfg, J))
+                   load_bank(run.run_dir, cfg, J), run_gate(run.run_dir, cfg.model.ood_gate))
 
 
 def load_bank(run_dir: str, cfg: Config, num_joints: int) -> MotionBank | None:
@@ -88,7 +90,8 @@ def load_bank(run_dir: str, cfg: Config, num_joints: int) -> MotionBank | None:
     return bank
 
 
-def infill_features(trained: Trained, context, keyframes, frames: int, num_samples: int, seed: int = 0):
+def infill_features(trained: Trained, context, keyframes, frames: int, num_samples: int, seed: int = 0,
+                    gate_info: dict | None = None):
     """Roll the interaction network out for ``frames`` frames after two characters' context windows.
 
     context: (2, n_input, J, 9) world features (positions + forward/up of global rotations) of the frames
@@ -96,8 +99,10 @@ def infill_features(trained: Trained, context, keyframes, frames: int, num_sampl
     exactly ceil(frames / n_pred) steps (no early stop) and the first ``frames`` frames are kept.  Models
     with a time-to-arrival input (``model.tta`` / ``model.residual``) are told that the keyframe follows
     frame ``frames``; the paper's model has none and only its output is cut.  A run whose config turns the
-    motion bank on gets its in-between and texture over the frames (:func:`.bank.apply_bank`).  Returns
-    (S, 2, frames, J, 9) world features (float64).
+    motion bank on gets its in-between and texture over the frames (:func:`.bank.apply_bank`); with
+    ``model.ood_gate`` the frames are then moved toward per-character interpolation by the out-of-distribution
+    gate (:mod:`.gate`), and ``gate_info`` (a dict, when given) receives ``ood_score`` and ``gate_weight``.
+    Returns (S, 2, frames, J, 9) world features (float64).
     """
     cfg, fa = trained.cfg, trained.forward_axis
     b = key_space_inputs(context, keyframes, fa, cfg.data.pos_scale)
@@ -109,6 +114,11 @@ def infill_features(trained: Trained, context, keyframes, frames: int, num_sampl
     if trained.bank is not None:
         feet = foot_indices(trained.skeleton)
         out = apply_bank(trained.bank, cfg.model, out, b["x"], b["keypose"], [frames], feet)
+    if trained.gate is not None and cfg.model.ood_gate:   # toward interpolation as the window leaves the training takes
+        from inbetween_jax.models.interaction.gate import gate_rollouts
+        out, score, weight = gate_rollouts(trained.gate, out, b["x"], b["keypose"], [frames])
+        if gate_info is not None:
+            gate_info.update(ood_score=float(score[0]), gate_weight=float(weight[0]))
     if cfg.model.ease_frames:      # the last frames take up the jump onto the keypose (.bank.ease_into_keypose)
         out = ease_into_keypose(out, b["keypose"], [frames], cfg.model.ease_frames)
     out = np.asarray(out, np.float64)[:, 0, :, :frames]                        # (S, 2, frames, J, 9)
@@ -179,7 +189,8 @@ def infill(args, run: Run) -> InfillResult:
     context = np.stack([world_joint_features(p.motion)[s - n_in + 1:s + 1] for _, p, s, _, _, _, _ in chars])
     keys = np.stack([world_joint_features(kp.motion.slice(kf, kf + 1))[0] for _, _, _, _, kp, kf, _ in chars])
     trained = load(run)
-    feats = infill_features(trained, context, keys, args.frames, args.samples, args.seed)
+    gated = {}
+    feats = infill_features(trained, context, keys, args.frames, args.samples, args.seed, gated)
     finite_or_fail(run.run_dir, feats)
     samples = []
     for i, name in enumerate(_sample_names(args.samples)):
@@ -191,7 +202,13 @@ def infill(args, run: Run) -> InfillResult:
         samples.append((name, motions, None))
     summary = {"a": f"{pa}:{own[0][0]}", "b": f"{pb}:{own[1][0]}", "key_a": f"{chars[0][3]}:{own[0][1]}",
                "key_b": f"{chars[1][3]}:{own[1][1]}", "frames": args.frames, "samples": args.samples,
-               "step": trained.step}
+               "step": trained.step, **gated}
+    from inbetween_jax.evaluation.samples import sample_spread
+    summary.update(sample_spread([tuple(m) for _, m, _ in samples]))       # both dancers' joints, per sample
+    if gated:
+        from inbetween_jax.models.ood import gate_note
+        notes.append(gate_note(gated["ood_score"], gated["gate_weight"], "per-character interpolation"))
+        summary["samples_ood"] = [dict(gated, sample=n) for n, _, _ in samples]
     return InfillResult(samples=samples, summary=summary, what="start / keyframe", notes=list(dict.fromkeys(notes)))
 
 

@@ -360,6 +360,7 @@ def infill(args, run):
         pos[:, 0] = r
         out = dataclasses.replace(sm, local_quats=q, local_pos=pos)
         samples.append((name, [out if keys is None else expand(out, keys, ps.match)], None))
+    from inbetween_jax.evaluation.samples import sample_spread
     spread = sample_spread([m[0] for _, m, _ in samples])
     return InfillResult(samples=samples, summary={**keyframes, "frames": args.frames,
                                                   "samples": args.samples, "step": trained.step,
@@ -367,18 +368,3 @@ def infill(args, run):
                                                   "samples_ood": [dict(gated, sample=n) for n in
                                                                   sample_names(args.samples)] if gated else []},
                         notes=notes)
-
-
-def sample_spread(motions) -> dict:
-    """How different the samples of one in-between are, for ``infill.json``: ``samples_pairwise_cm`` (mean joint
-    distance between two samples over the frames) and ``samples_spread_cm`` (each sample's mean joint distance to
-    the others: the largest is the most unusual choice).  motions: one Motion per sample, the same frames."""
-    from inbetween_jax.data.features import detect_unit_scale
-    if len(motions) < 2:
-        return {}
-    cm = detect_unit_scale(motions[0].skeleton)
-    pos = np.stack([np.asarray(m.global_positions()) for m in motions]) * cm          # (S, T, J, 3)
-    d = np.linalg.norm(pos[:, None] - pos[None], axis=-1).mean((-1, -2))              # (S, S), zero diagonal
-    each = d.sum(1) / (len(motions) - 1)
-    return {"samples_pairwise_cm": round(float(each.mean()), 3),
-            "samples_spread_cm": [round(float(x), 3) for x in each]}

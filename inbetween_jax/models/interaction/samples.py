@@ -1,0 +1,80 @@
+"""The interaction model as a generative model: N samples of each window, judged as samples.
+
+Per length, on windows of the real-pair protocol (true gap): mean- and best-of-N L2P (best: each window's lowest
+over its samples, then the mean over windows) as ratios to interpolation's, APD (m, both characters' positions in
+the common space), the mean pairwise joint distance between samples (cm) and the interaction classifier's score of
+every sample (the mean over samples and windows, as a multiple of ground truth's on the same windows).  Used by the
+bench's samples rows and ``experiments/interaction_samples.py`` (the sampled mode chosen on the validation take).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["window_l2p", "sample_table"]
+
+
+def window_l2p(pred, b, stats) -> np.ndarray:
+    """Per window: L2P of ``pred`` (B, 2, L, J, 9) against the window's ground truth (the mean of both characters,
+    common space), so that its mean over windows is :func:`~inbetween_jax.evaluation.interaction.pair_l2p`."""
+    import jax.numpy as jnp
+    from inbetween_jax.evaluation.interaction import N_INPUT
+    from inbetween_jax.models.interaction.features import to_common_space
+    L = pred.shape[2]
+    P = np.asarray(to_common_space(jnp.asarray(pred), b["rel_R"], b["rel_t"]))[..., :3]
+    G = np.asarray(to_common_space(jnp.asarray(b["x"][:, :, N_INPUT:N_INPUT + L]), b["rel_R"], b["rel_t"]))[..., :3]
+    mean, std = (np.asarray(s, np.float64) for s in stats)
+    z = (P.reshape(P.shape[:3] + (-1,)) - G.reshape(G.shape[:3] + (-1,))) / std          # (B, 2, L, D)
+    return np.sqrt(np.sum(z ** 2, -1)).mean((1, 2))
+
+
+def _scores(cls, b, pred):
+    """Classifier score of each window's clip: last context frame + ``pred`` (B, 2, L, J, 9), common space."""
+    import jax.numpy as jnp
+    from inbetween_jax.evaluation.interaction import N_INPUT, classify_windows, to_common_space
+    clip = np.concatenate([b["x"][:, :, N_INPUT - 1:N_INPUT], pred], 2)
+    common = to_common_space(jnp.asarray(clip, jnp.float32), b["rel_R"], b["rel_t"])
+    return np.asarray(classify_windows(cls[0], cls[1], common)[0]).mean(1)                 # (B,)
+
+
+def sample_table(method, windows, stats, cls, num: int = 10, lengths=(30, 50), seed: int = 0) -> list:
+    """Rows ``{"frames", "windows", "mean_l2p", "best_l2p", "interp_l2p", "apd_m", "pairwise_cm", "score",
+    "score_gt"}`` of ``method`` (a bench method, ``num`` samples) on ``windows[L]``; cls: (graphdef, params) of the
+    bench's interaction classifier."""
+    import jax
+    from inbetween_jax.evaluation import interaction as proto
+    from inbetween_jax.metrics import apd
+    from inbetween_jax.models.interaction.features import to_common_space
+    rows = []
+    for L in lengths:
+        b = windows.get(L)
+        if not b:
+            continue
+        steps = -(-L // 10)
+        pred = np.asarray(method(b, steps, num, jax.random.fold_in(jax.random.key(seed), L)))[:, :, :, :L]
+        per = np.stack([window_l2p(p, b, stats) for p in pred])                            # (N, B)
+        interp = window_l2p(proto.interpolation_method(b, steps, 1, None)[0][:, :, :L], b, stats)
+        common = np.stack([np.asarray(to_common_space(p, b["rel_R"], b["rel_t"]))[..., :3] for p in pred])
+        pair = [np.linalg.norm(common[i] - common[j], axis=-1).mean() for i in range(num) for j in range(i + 1, num)]
+        rows.append({"frames": L, "windows": int(per.shape[1]), "mean_l2p": float(per.mean()),
+                     "best_l2p": float(per.min(0).mean()), "interp_l2p": float(interp.mean()),
+                     "apd_m": float(apd(common.reshape(common.shape[:2] + (-1,)))),
+                     "pairwise_cm": 100.0 * float(np.mean(pair)) if pair else 0.0,
+                     "score": float(np.mean([_scores(cls, b, p).mean() for p in pred])),
+                     "score_gt": float(_scores(cls, b, b["x"][:, :, proto.N_INPUT:proto.N_INPUT + L]).mean())})
+    return rows
+
+
+def bench_rows(table_rows, data: str, variant: str) -> tuple:
+    """The bench's ``table: "samples"`` rows (bench.json) and markdown of :func:`sample_table`'s rows."""
+    from inbetween_jax.evaluation.tables import flat_rows
+    shown = [{"frames": r["frames"], "windows": r["windows"],
+              "mean-of-N L2P / interp": r["mean_l2p"] / r["interp_l2p"], "best-of-N / interp": r["best_l2p"] /
+              r["interp_l2p"], "APD (m)": r["apd_m"], "pairwise (cm)": r["pairwise_cm"],
+              "score / ground truth's": r["score"] / max(r["score_gt"], 1e-9)} for r in table_rows]
+    flat = flat_rows([dict(r, **s) for r, s in zip(table_rows, shown)], table="samples", data=data,
+                     model="interaction", variant=variant, keys=("frames",))
+    lines = [f"**Samples** ({variant}; N = 10 per window, true gap; sample 0 is the deterministic fill)", "",
+             "| " + " | ".join(shown[0]) + " |", "|" + "---|" * len(shown[0])] if shown else []
+    lines += ["| " + " | ".join(f"{v:.3f}" if isinstance(v, float) else str(v) for v in s.values()) + " |"
+              for s in shown]
+    return flat, "\n".join(lines)
