@@ -329,8 +329,7 @@ def run(source, results_dir: str, run_dir, quick: bool = False) -> dict:
         rows += flat_rows([{"method": name, "frames": L, "reached": v["reached"], "median_frames": v["median_frames"]}],
                           table="interaction_arrival", data=data_name, model=groups[name], variant=name)
     if trained is not None and not constructed:          # the worst case: per-window ratios to interpolation
-        from inbetween_jax.models.interaction.calibrate import per_window_rows
-        from inbetween_jax.models.interaction.samples import bench_rows, sample_table
+        from inbetween_jax.models.interaction.samples import bench_rows, per_window_rows, sample_table
         wc, wc_md = per_window_rows(trained, methods[ours][1], windows, data_name)
         sr, sr_md = bench_rows(sample_table(methods[ours][1], windows, stats, cls[:2]), data_name, ours)
         rows += wc + sr

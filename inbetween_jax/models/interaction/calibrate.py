@@ -1,24 +1,12 @@
 """Calibration of the interaction model's out-of-distribution gate (:mod:`.gate`, :mod:`inbetween_jax.models.ood`)
-on the validation take of the run's training pairs (never the test takes), and the bench's per-window rows."""
+on the validation take of the run's training pairs (never the test takes)."""
 from __future__ import annotations
 
 import dataclasses
 
 import numpy as np
 
-__all__ = ["window_errors_cm", "calibrate", "per_window_rows"]
-
-
-def window_errors_cm(pred, b) -> np.ndarray:
-    """Per window: mean joint position error (cm) over both characters and the gap frames of ``pred`` (B, 2, L,
-    J, 9) against window ``b``'s ground truth, both in character A's key space (positions in metres)."""
-    import jax.numpy as jnp
-    from inbetween_jax.evaluation.interaction import N_INPUT
-    from inbetween_jax.models.interaction.features import to_common_space
-    L = pred.shape[2]
-    P = np.asarray(to_common_space(jnp.asarray(pred), b["rel_R"], b["rel_t"]))[..., :3]
-    G = np.asarray(to_common_space(jnp.asarray(b["x"][:, :, N_INPUT:N_INPUT + L]), b["rel_R"], b["rel_t"]))[..., :3]
-    return 100.0 * np.linalg.norm(P - G, axis=-1).mean((1, 2, 3))
+__all__ = ["calibrate"]
 
 
 def calibrate(run, source: str, lengths=(30, 50), max_windows: int = 64) -> dict:
@@ -33,6 +21,7 @@ def calibrate(run, source: str, lengths=(30, 50), max_windows: int = 64) -> dict
     from inbetween_jax.models.interaction.data import load_pairs, split_pairs
     from inbetween_jax.models.interaction.gate import gate_blend, interpolation_base, window_context
     from inbetween_jax.models.interaction.infer import load
+    from inbetween_jax.models.interaction.samples import window_errors_cm
     from inbetween_jax.models.ood import BLEND_WEIGHTS, SpeedScore, calibrate_gate
     trained = load(run)
     d, ease = trained.cfg.data, trained.cfg.model.ease_frames
@@ -67,30 +56,3 @@ def calibrate(run, source: str, lengths=(30, 50), max_windows: int = 64) -> dict
                                    groups=[str(r["frames"]) for r in records])
     return {"bank": bank, "gate": gate, "summary": dict(summary, lo=gate.lo, hi=gate.hi, kind="speed"),
             "records": records}
-
-
-def per_window_rows(trained, method, windows, data: str, lengths=(30, 50)) -> tuple:
-    """Worst-case rows (:mod:`inbetween_jax.evaluation.worst_case`) of a bench ``method``: each test window's
-    joint error (one sample, true gap) over per-character interpolation's, per length; plus the validation take
-    from a gated run's ``ood_calibration.json`` at the gate's weights.  Returns (rows, markdown)."""
-    import jax
-    from inbetween_jax.evaluation.interaction import N_INPUT
-    from inbetween_jax.evaluation.worst_case import worst_case_markdown, worst_case_rows
-    from inbetween_jax.models.interaction.gate import interpolation_base
-    from inbetween_jax.models.ood import calibration_worst_case
-    recs = []
-    for L in lengths:
-        b = windows.get(L)
-        if not b:
-            continue
-        pred = np.asarray(method(b, -(-L // trained.cfg.data.n_pred), 1, jax.random.key(L)))[0, :, :, :L]
-        base = window_errors_cm(interpolation_base(b["x"][:, :, :N_INPUT], b["keypose"], L), b)
-        recs += [{"name": n, "frames": L, "ratio": float(e / max(g, 1e-6))}
-                 for n, e, g in zip(b["names"], window_errors_cm(pred, b), base)]
-    rows = worst_case_rows(recs, "per_window", data, "interaction", "interpolation", "test")
-    val = calibration_worst_case(trained.run_dir, trained.gate if trained.cfg.model.ood_gate else None,
-                                 "interaction", "interpolation", split="validation take")
-    md = worst_case_markdown(rows, "Per-window ratio to interpolation, test takes (true gap, one sample)")
-    if val:
-        md += "\n\n" + worst_case_markdown(val, "Per-window ratio to interpolation, validation take (gated)")
-    return rows + val, md

@@ -1,4 +1,7 @@
-"""The interaction model as a generative model: N samples of each window, judged as samples.
+"""The interaction model judged per window and per sample: the worst case and N samples of each window.
+
+:func:`per_window_rows`: each window's joint error over interpolation's (the bench's per-window rows, the gate's
+calibration measure).  :func:`sample_table`: the model as a generative model.
 
 Per length, on windows of the real-pair protocol (true gap): mean- and best-of-N L2P (best: each window's lowest
 over its samples, then the mean over windows) as ratios to interpolation's, APD (m, both characters' positions in
@@ -10,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["window_l2p", "sample_table"]
+__all__ = ["window_l2p", "window_errors_cm", "per_window_rows", "sample_table", "bench_rows"]
 
 
 def window_l2p(pred, b, stats) -> np.ndarray:
@@ -25,6 +28,45 @@ def window_l2p(pred, b, stats) -> np.ndarray:
     mean, std = (np.asarray(s, np.float64) for s in stats)
     z = (P.reshape(P.shape[:3] + (-1,)) - G.reshape(G.shape[:3] + (-1,))) / std          # (B, 2, L, D)
     return np.sqrt(np.sum(z ** 2, -1)).mean((1, 2))
+
+
+def window_errors_cm(pred, b) -> np.ndarray:
+    """Per window: mean joint position error (cm) over both characters and the gap frames of ``pred`` (B, 2, L,
+    J, 9) against window ``b``'s ground truth, both in character A's key space (positions in metres)."""
+    import jax.numpy as jnp
+    from inbetween_jax.evaluation.interaction import N_INPUT
+    from inbetween_jax.models.interaction.features import to_common_space
+    L = pred.shape[2]
+    P = np.asarray(to_common_space(jnp.asarray(pred), b["rel_R"], b["rel_t"]))[..., :3]
+    G = np.asarray(to_common_space(jnp.asarray(b["x"][:, :, N_INPUT:N_INPUT + L]), b["rel_R"], b["rel_t"]))[..., :3]
+    return 100.0 * np.linalg.norm(P - G, axis=-1).mean((1, 2, 3))
+
+
+def per_window_rows(trained, method, windows, data: str, lengths=(30, 50)) -> tuple:
+    """Worst-case rows (:mod:`inbetween_jax.evaluation.worst_case`) of a bench ``method``: each test window's
+    joint error (one sample, true gap) over per-character interpolation's, per length; plus the validation take
+    from a gated run's ``ood_calibration.json`` at the gate's weights.  Returns (rows, markdown)."""
+    import jax
+    from inbetween_jax.evaluation.interaction import N_INPUT
+    from inbetween_jax.evaluation.worst_case import worst_case_markdown, worst_case_rows
+    from inbetween_jax.models.interaction.gate import interpolation_base
+    from inbetween_jax.models.ood import calibration_worst_case
+    recs = []
+    for L in lengths:
+        b = windows.get(L)
+        if not b:
+            continue
+        pred = np.asarray(method(b, -(-L // trained.cfg.data.n_pred), 1, jax.random.key(L)))[0, :, :, :L]
+        base = window_errors_cm(interpolation_base(b["x"][:, :, :N_INPUT], b["keypose"], L), b)
+        recs += [{"name": n, "frames": L, "ratio": float(e / max(g, 1e-6))}
+                 for n, e, g in zip(b["names"], window_errors_cm(pred, b), base)]
+    rows = worst_case_rows(recs, "per_window", data, "interaction", "interpolation", "test")
+    val = calibration_worst_case(trained.run_dir, trained.gate if trained.cfg.model.ood_gate else None,
+                                 "interaction", "interpolation", split="validation take")
+    md = worst_case_markdown(rows, "Per-window ratio to interpolation, test takes (true gap, one sample)")
+    if val:
+        md += "\n\n" + worst_case_markdown(val, "Per-window ratio to interpolation, validation take (gated)")
+    return rows + val, md
 
 
 def _scores(cls, b, pred):
