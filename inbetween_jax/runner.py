@@ -35,8 +35,9 @@ def build_config(model: str, preset: str | None = None, overrides: Sequence[str]
 
 def train_model(model: str, preset: str | None = None, overrides: Sequence[str] = (), source: str | None = None,
                 run_dir: str | None = None, progress: bool = True, log: Callable[[str], None] | None = print,
-                mesh=None):
-    """Train (or resume) ``model``; returns ``(run_dir, logged rows)``.
+                mesh=None, stop_at: int | None = None):
+    """Train (or resume) ``model``; returns ``(run_dir, logged rows)``.  ``stop_at``: stop after this step with the
+    schedule of the full run unchanged (a later call without it resumes to the end).
 
     Raises:
         ValueError (ConfigError, BVHError, RunError) / OSError: one-line problems with the inputs;
@@ -67,19 +68,20 @@ def train_model(model: str, preset: str | None = None, overrides: Sequence[str] 
     if training.num_steps == 0:
         save_initial_state(run_dir, training.init_fn, tc.seed)
         return run_dir, []
+    last = training.num_steps if stop_at is None else max(1, min(int(stop_at), training.num_steps))
     done = max(_checkpoint_steps(os.path.join(run_dir, "checkpoints")), default=0)
-    complete = done >= training.num_steps            # a finished run run again: say so instead of a full bar
+    complete = done >= last                          # a finished run run again: say so instead of a full bar
     if complete and log:
-        log(f"{model}: training already complete (step {done} of {training.num_steps}) in {run_dir}")
+        log(f"{model}: training already complete (step {done} of {last}) in {run_dir}")
     t0 = time.time()
     _, logged = run_training(training.init_fn, training.step_fn, training.batch_fn, cfg, run_dir,
-                             training.num_steps, tc.log_every, tc.ckpt_every, tc.seed,
+                             last, tc.log_every, tc.ckpt_every, tc.seed,
                              progress=progress and not complete, mesh=mesh, max_to_keep=tc.keep_checkpoints or None)
     wall = time.time() - t0
     if not primary:
         return run_dir, logged
     if not complete:
-        record_training(run_dir, training.num_steps, wall)
+        record_training(run_dir, last, wall)
     bench = spec.module("bench")
     from inbetween_jax.data.datasets import is_fit_split
     if is_fit_split(tc.split) and hasattr(bench, "val_score"):

@@ -1,4 +1,4 @@
-"""Previews of motions: contact sheets, animated GIFs and error-over-time plots (matplotlib, Agg).
+"""Previews of motions: contact sheets and animated GIFs (matplotlib, Agg); error-over-time plots: :mod:`.viz_plots`.
 
 Conventions: ``positions`` are (T, J, 3) global joint positions in cm, Y up, floor on the XZ plane;
 ``parents`` is the skeleton's parent array (``parents[0] == -1``, ``parents[j] < j``).
@@ -14,7 +14,7 @@ callback, called as the drawing advances.
 from __future__ import annotations
 
 import os
-from typing import Mapping, Optional, Sequence
+from typing import Optional, Sequence
 
 import matplotlib
 
@@ -26,6 +26,7 @@ from matplotlib.collections import LineCollection  # noqa: E402
 from inbetween_jax.viz_frames import (MAX_GIF_FPS, MAX_GIF_FRAMES, MAX_POSES, GifPlan,  # noqa: E402,F401
                                       GifPalette, Progress, SheetPlan, canvas_rgb, gif_frames, save_atomic,
                                       sheet_frames, write_gif)
+from inbetween_jax.viz_plots import plot_error_over_time  # noqa: E402,F401
 
 KEY_COLOR = "#000000"        # keyframes
 GENERATED_COLOR = "#999999"  # generated (in-between) frames
@@ -78,17 +79,6 @@ def _check_generated(generated, num_frames: int) -> np.ndarray:
     return gen
 
 
-def _check_curve(values, name: str, length: Optional[int] = None) -> np.ndarray:
-    arr = np.asarray(values, dtype=np.float64)
-    if arr.ndim != 1 or arr.shape[0] == 0:
-        raise ValueError(f"{name} must be a non-empty 1-D array, got shape {arr.shape}")
-    if length is not None and arr.shape[0] != length:
-        raise ValueError(f"{name} has {arr.shape[0]} values but times has {length}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} contains a non-finite value at index {int(np.argmax(~np.isfinite(arr)))}")
-    return arr
-
-
 # ------------------------------------------------------------------------------------ geometry
 def _heading(points_xz: np.ndarray) -> np.ndarray:
     """Unit XZ direction of the overall motion of a (T, 2) trajectory (principal axis if it barely moves)."""
@@ -120,6 +110,24 @@ def _segments(pose: np.ndarray, parents, r: float = 4.0) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------- public API
+def sheet_canvas(xy, width: float, height: float, dpi: int, titled: bool):
+    """``(figure, axes, ymin)`` of a contact sheet of side-view poses ``xy`` (..., J, 2) (cm): the poses' x range
+    with a margin of 0.1 ``width``, room below the floor for frame numbers, equal aspect, the floor drawn; a
+    ``titled`` sheet is 0.3 inch taller.  The caller closes the figure."""
+    xmin, xmax = xy[..., 0].min() - 0.1 * width, xy[..., 0].max() + 0.1 * width
+    ymin, ymax = min(0.0, xy[..., 1].min()) - 16.0, xy[..., 1].max() + 10.0  # room for frame numbers
+    fig_w = min(max(height * (xmax - xmin) / (ymax - ymin), 2.0), 60.0)
+    head = 0.3 if titled else 0.0
+    fig = plt.figure(figsize=(fig_w, height + head), dpi=dpi, facecolor="white")
+    ax = fig.add_axes((0.0, 0.0, 1.0, height / (height + head)))
+    ax.set_axis_off()
+    ax.set_xlim(xmin, xmax)
+    ax.set_ylim(ymin, ymax)
+    ax.set_aspect("equal", adjustable="box")
+    ax.plot([xmin, xmax], [0.0, 0.0], color=FLOOR_COLOR, lw=1.0, zorder=0)
+    return fig, ax, ymin
+
+
 def contact_sheet(positions, parents, path, every: int = 5, keyframes: Sequence[int] = (),
                   title: Optional[str] = None, generated=None, *, height: float = 2.5, dpi: int = 100,
                   first_frame: int = 0, max_poses: int = MAX_POSES, progress: Progress = None) -> str:
@@ -154,20 +162,11 @@ def contact_sheet(positions, parents, path, every: int = 5, keyframes: Sequence[
         root_x = np.arange(len(frames)) * 1.15 * width
     xy[..., 0] = local_x + root_x[:, None]
 
-    xmin, xmax = xy[..., 0].min() - 0.1 * width, xy[..., 0].max() + 0.1 * width
-    ymin, ymax = min(0.0, xy[..., 1].min()) - 16.0, xy[..., 1].max() + 10.0  # room for frame numbers
-    fig_w = min(max(height * (xmax - xmin) / (ymax - ymin), 2.0), 60.0)
     total = len(frames) + 1
     style = {"lines.antialiased": False, "text.antialiased": False, "patch.antialiased": False}
     with plt.rc_context(style):
-        fig = plt.figure(figsize=(fig_w, height + (0.3 if title else 0.0)), dpi=dpi, facecolor="white")
+        fig, ax, ymin = sheet_canvas(xy, width, height, dpi, bool(title))
         try:
-            ax = fig.add_axes((0.0, 0.0, 1.0, height / (height + (0.3 if title else 0.0))))
-            ax.set_axis_off()
-            ax.set_xlim(xmin, xmax)
-            ax.set_ylim(ymin, ymax)
-            ax.set_aspect("equal", adjustable="box")
-            ax.plot([xmin, xmax], [0.0, 0.0], color=FLOOR_COLOR, lw=1.0, zorder=0)
             for f, (frame, pose) in enumerate(zip(frames, xy)):
                 is_key = frame in keys
                 color = KEY_COLOR if is_key else GENERATED_COLOR if gen[frame] else OTHER_COLOR
@@ -292,40 +291,6 @@ def animate(positions, parents, path, fps: float = 30, keyframes: Sequence[int] 
     write_gif(path, images, plan.durations_ms)
     if progress is not None:
         progress(total, total)
-    return os.fspath(path)
-
-
-def plot_error_over_time(times, mean, lo, hi, path, label: str, baseline: Optional[Mapping] = None,
-                         ylabel: str = "L2P error", *, xlabel: str = "frame of the transition",
-                         title: Optional[str] = None, dpi: int = 100) -> str:
-    """Error along the transition with a shaded diversity band, as a PNG.
-
-    times, mean, lo, hi: (T,) arrays; the band spans lo..hi (min..max, or mean -/+ std, over
-    samples) and needs lo <= hi. baseline: optional {label: (T,) curve}, drawn dashed.
-    Returns ``path``.
-    """
-    x = _check_curve(times, "times")
-    m, l_, h = (_check_curve(v, n, len(x)) for v, n in ((mean, "mean"), (lo, "lo"), (hi, "hi")))
-    if np.any(l_ > h):
-        raise ValueError(f"lo > hi at index {int(np.argmax(l_ > h))}")
-    curves = {str(k): _check_curve(v, f"baseline {k!r}", len(x)) for k, v in (baseline or {}).items()}
-    fig = plt.figure(figsize=(5.0, 3.2), dpi=dpi, facecolor="white")
-    try:
-        ax = fig.add_subplot()
-        line = ax.plot(x, m, lw=2.0, label=label)[0]
-        ax.fill_between(x, l_, h, color=line.get_color(), alpha=0.25, lw=0.0, label=f"{label} (range)")
-        for name, curve in curves.items():
-            ax.plot(x, curve, ls="--", lw=1.5, label=name)
-        ax.set_xlabel(xlabel)
-        ax.set_ylabel(ylabel)
-        if title:
-            ax.set_title(title, fontsize=10)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8, frameon=False)
-        fig.tight_layout()
-        save_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=dpi, facecolor="white"), ".png")
-    finally:
-        plt.close(fig)
     return os.fspath(path)
 
 

@@ -11,8 +11,8 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from inbetween_jax.viz import (FLOOR_COLOR, KEY_COLOR, _check_keyframes, _check_positions, _heading, _segments,
-                               _side_view, plt, save_atomic, sheet_frames)
+from inbetween_jax.viz import (KEY_COLOR, _check_keyframes, _check_positions, _heading, _segments, _side_view, plt,
+                               save_atomic, sheet_canvas, sheet_frames)
 
 __all__ = ["samples_sheet"]
 
@@ -46,20 +46,10 @@ def samples_sheet(samples, parents, path, every: int = 5, keyframes: Sequence[in
     if len(frames) > 1 and np.diff(slots).min() < 0.9 * width:
         slots = np.arange(len(frames)) * 1.15 * width
     xy[..., 0] += (slots - centre)[None, :, None]
-    xmin, xmax = xy[..., 0].min() - 0.1 * width, xy[..., 0].max() + 0.1 * width
-    ymin, ymax = min(0.0, xy[..., 1].min()) - 16.0, xy[..., 1].max() + 10.0
-    fig_w = min(max(height * (xmax - xmin) / (ymax - ymin), 2.0), 60.0)
     colours = plt.get_cmap("tab10" if n <= 10 else "tab20")(np.arange(n) % (10 if n <= 10 else 20))
-    head = 0.3 if title else 0.0
-    fig = plt.figure(figsize=(fig_w, height + head), dpi=dpi, facecolor="white")
+    fig, ax, ymin = sheet_canvas(xy, width, height, dpi, bool(title))
     try:
         from matplotlib.collections import LineCollection
-        ax = fig.add_axes((0.0, 0.0, 1.0, height / (height + head)))
-        ax.set_axis_off()
-        ax.set_xlim(xmin, xmax)
-        ax.set_ylim(ymin, ymax)
-        ax.set_aspect("equal", adjustable="box")
-        ax.plot([xmin, xmax], [0.0, 0.0], color=FLOOR_COLOR, lw=1.0, zorder=0)
         for f, frame in enumerate(frames):
             drawn = [0] if frame in keys else range(n)
             for i in drawn:

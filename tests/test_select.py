@@ -56,3 +56,27 @@ def test_an_unreadable_checkpoint_is_skipped_not_fatal(tmp_path):
 
     out = select_checkpoint(run_dir, "cmu", score, "val L2P", log=None)
     assert out["step"] == 250 and list(out["scores"]) == ["250"]
+
+
+def test_checkpoints_record_training_time_across_a_resume_and_time_to_score_reads_it(tmp_path):
+    """``stop_at`` ends a run early with its schedule unchanged; the resumed run's checkpoints carry on the training
+    wall time; :func:`time_to_score` reports the first checkpoint at or below a target with that time."""
+    from inbetween_jax.runner import train_model
+    from inbetween_jax.train.checkpoint import Checkpointer
+    from inbetween_jax.train.select import time_to_score
+    run_dir = str(tmp_path / "cae")
+    args = ("cae", "tiny", ["train.num_steps=6", "train.ckpt_every=2", "train.log_every=2"], "embedded", run_dir)
+    train_model(*args, progress=False, log=None, stop_at=4)
+    with Checkpointer(os.path.join(run_dir, "checkpoints"), max_to_keep=None) as ck:
+        assert ck.all_steps()[-1] == 4
+        first = [ck.restore_extra(s)["train_wall_s"] for s in (2, 4)]
+    train_model(*args, progress=False, log=None)                                # resumes to step 6
+    with Checkpointer(os.path.join(run_dir, "checkpoints"), max_to_keep=None) as ck:
+        walls = [ck.restore_extra(s)["train_wall_s"] for s in (2, 4, 6)]
+    assert walls[:2] == first and 0 < walls[0] <= walls[1] <= walls[2]
+    assert json.load(open(os.path.join(run_dir, "run.json")))["history"][0]["steps"] == 4
+    selection = {"scores": {"2": 0.9, "4": 0.7, "6": 0.6}}
+    out = time_to_score(run_dir, selection, 0.75)
+    assert (out["step"], out["score"], out["train_wall_s"]) == (4, 0.7, walls[1])
+    assert time_to_score(run_dir, selection, 0.5) == {"target": 0.5, "step": None, "score": None,
+                                                      "train_wall_s": None}

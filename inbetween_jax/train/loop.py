@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 import os
+import time
 import warnings
 from typing import Any, Callable
 
@@ -162,11 +163,13 @@ def run_training(init_fn: Callable[[jax.Array], Any],
     logger = bar = None
     try:
         start = ckpt.latest_step()
+        wall0 = 0.0                           # training seconds before this call (resumed runs)
         if start is None:
             start = 0
             state = jax.tree.map(strongly_typed, init_fn(init_key))
         else:
             extra = ckpt.restore_extra(start)
+            wall0 = float(extra.get("train_wall_s", 0.0))
             if extra.get("seed", seed) != seed:
                 warnings.warn(f"resuming {run_dir} (seed {extra.get('seed')}) with seed {seed}: "
                               "the run will not reproduce an uninterrupted one", stacklevel=2)
@@ -183,6 +186,7 @@ def run_training(init_fn: Callable[[jax.Array], Any],
         logged: list[dict] = []
         pending: list[tuple[int, dict]] = []  # device metrics not yet checked (avoids a sync per step)
 
+        t_start = time.perf_counter()
         for i in range(start, num_steps):
             batch = batch_fn(i, jax.random.fold_in(data_base, i))
             state, metrics = step_fn(state, batch, np.int32(i))
@@ -200,7 +204,9 @@ def run_training(init_fn: Callable[[jax.Array], Any],
                 bar.update(len(host), metrics=host[-1][1] if do_log else None)
             if do_ckpt:
                 ckpt.save(n, state, extra_json={"step": n, "seed": seed, "data": {"next_step": n},
-                                                "config": config_json}, force=True)
+                                                "config": config_json,
+                                                "train_wall_s": round(wall0 + time.perf_counter() - t_start, 2)},
+                          force=True)
         return state, logged
     finally:
         if bar is not None:

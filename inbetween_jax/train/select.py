@@ -15,7 +15,7 @@ from typing import Callable
 
 from inbetween_jax.train.run import SELECTION_FILE, RunError, _checkpoint_steps, load_run, selected_step
 
-__all__ = ["SELECTION_FILE", "select_checkpoint", "select_with_bench", "selected_step"]
+__all__ = ["SELECTION_FILE", "select_checkpoint", "select_with_bench", "selected_step", "time_to_score"]
 
 
 def select_checkpoint(run_dir: str, source: str, score_fn: Callable, metric: str,
@@ -61,6 +61,24 @@ def select_with_bench(run_dir: str, source: str, bench, log: Callable[[str], Non
     split = val_split_of(load_run(run_dir, need_checkpoint=False).config.get("train", {}).get("split", "fit"))
     return select_checkpoint(run_dir, source, lambda r: bench.val_score(r, source),
                              getattr(bench, "VAL_METRIC", "val L2P"), log=log, split=split)
+
+
+def time_to_score(run_dir: str, selection: dict, target: float) -> dict:
+    """The first checkpoint of ``run_dir`` whose score in ``selection`` (:func:`select_checkpoint`'s record) is at
+    most ``target``, and the training wall time up to it (``train_wall_s`` in the checkpoint's JSON, written by
+    :func:`inbetween_jax.train.run_training`, resumed runs included): ``{"target", "step", "score",
+    "train_wall_s"}`` (step None and no time when no checkpoint reaches the target; time None for a checkpoint
+    written before the wall time was recorded)."""
+    from inbetween_jax.train.checkpoint import Checkpointer
+    scores = {int(k): float(v) for k, v in selection.get("scores", {}).items()}
+    hit = [s for s in sorted(scores) if scores[s] <= target]
+    out = {"target": float(target), "step": hit[0] if hit else None,
+           "score": scores[hit[0]] if hit else None, "train_wall_s": None}
+    if hit:
+        with Checkpointer(os.path.join(run_dir, "checkpoints"), max_to_keep=None) as ck:
+            wall = ck.restore_extra(hit[0]).get("train_wall_s")
+        out["train_wall_s"] = None if wall is None else float(wall)
+    return out
 
 
 def _known_scores(run_dir: str, source: str, metric: str, split: str = "val") -> dict:
