@@ -23,7 +23,7 @@ def main() -> None:
     p.add_argument("--run-dir", default=None)
     p.add_argument("--stop-at", type=int, default=None)
     p.add_argument("overrides", nargs="*", metavar="key=value")
-    a = p.parse_args()
+    a = p.parse_intermixed_args()
     from inbetween_jax.models import REGISTRY
     from inbetween_jax.runner import build_config, train_model
     from inbetween_jax.train import config_to_dict

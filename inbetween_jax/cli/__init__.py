@@ -5,7 +5,7 @@
     inbetween infill --model MODEL [--ckpt RUN] ... --out DIR [--preview] [--gif]         in-between BVH files
     inbetween preview FILE.bvh [--frames a:b] [--gif] [--out DIR]                         draw a BVH file
     inbetween demo                                                                        tiny end-to-end demo
-    inbetween speed [--results DIR]                                                     JAX / PyTorch speed
+    inbetween speed [--results DIR]                                                       JAX / PyTorch speed
     inbetween sweep [--rows full,no_d,...] [--seeds N] [--steps N] [key=value ...]        ablations x seeds
     inbetween select-checkpoint RUN_DIR [--source S]                                      choose a run's step (validation)
     inbetween calibrate-gate RUN_DIR [--source S]                                         a run's out-of-distribution gate

@@ -16,29 +16,31 @@ import numpy as np
 __all__ = ["window_l2p", "window_errors_cm", "per_window_rows", "sample_table", "bench_rows"]
 
 
-def window_l2p(pred, b, stats) -> np.ndarray:
-    """Per window: L2P of ``pred`` (B, 2, L, J, 9) against the window's ground truth (the mean of both characters,
-    common space), so that its mean over windows is :func:`~inbetween_jax.evaluation.interaction.pair_l2p`."""
+def _positions(pred, b):
+    """(predicted, true) joint positions (B, 2, L, J, 3) of ``pred`` (B, 2, L, J, 9) and of window ``b``'s gap,
+    both in character A's key space (the common space)."""
     import jax.numpy as jnp
     from inbetween_jax.evaluation.interaction import N_INPUT
     from inbetween_jax.models.interaction.features import to_common_space
     L = pred.shape[2]
     P = np.asarray(to_common_space(jnp.asarray(pred), b["rel_R"], b["rel_t"]))[..., :3]
     G = np.asarray(to_common_space(jnp.asarray(b["x"][:, :, N_INPUT:N_INPUT + L]), b["rel_R"], b["rel_t"]))[..., :3]
-    mean, std = (np.asarray(s, np.float64) for s in stats)
+    return P, G
+
+
+def window_l2p(pred, b, stats) -> np.ndarray:
+    """Per window: L2P of ``pred`` (B, 2, L, J, 9) against the window's ground truth (the mean of both characters,
+    common space), so that its mean over windows is :func:`~inbetween_jax.evaluation.interaction.pair_l2p`."""
+    P, G = _positions(pred, b)
+    std = np.asarray(stats[1], np.float64)                                              # (mu cancels)
     z = (P.reshape(P.shape[:3] + (-1,)) - G.reshape(G.shape[:3] + (-1,))) / std          # (B, 2, L, D)
     return np.sqrt(np.sum(z ** 2, -1)).mean((1, 2))
 
 
 def window_errors_cm(pred, b) -> np.ndarray:
     """Per window: mean joint position error (cm) over both characters and the gap frames of ``pred`` (B, 2, L,
-    J, 9) against window ``b``'s ground truth, both in character A's key space (positions in metres)."""
-    import jax.numpy as jnp
-    from inbetween_jax.evaluation.interaction import N_INPUT
-    from inbetween_jax.models.interaction.features import to_common_space
-    L = pred.shape[2]
-    P = np.asarray(to_common_space(jnp.asarray(pred), b["rel_R"], b["rel_t"]))[..., :3]
-    G = np.asarray(to_common_space(jnp.asarray(b["x"][:, :, N_INPUT:N_INPUT + L]), b["rel_R"], b["rel_t"]))[..., :3]
+    J, 9) against window ``b``'s ground truth, in the common space (positions in metres)."""
+    P, G = _positions(pred, b)
     return 100.0 * np.linalg.norm(P - G, axis=-1).mean((1, 2, 3))
 
 
