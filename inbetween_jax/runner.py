@@ -68,20 +68,20 @@ def train_model(model: str, preset: str | None = None, overrides: Sequence[str] 
     if training.num_steps == 0:
         save_initial_state(run_dir, training.init_fn, tc.seed)
         return run_dir, []
-    last = training.num_steps if stop_at is None else max(1, min(int(stop_at), training.num_steps))
+    end_step = training.num_steps if stop_at is None else max(1, min(int(stop_at), training.num_steps))
     done = max(_checkpoint_steps(os.path.join(run_dir, "checkpoints")), default=0)
-    complete = done >= last                          # a finished run run again: say so instead of a full bar
+    complete = done >= end_step                      # a finished run run again: say so instead of a full bar
     if complete and log:
-        log(f"{model}: training already complete (step {done} of {last}) in {run_dir}")
+        log(f"{model}: training already complete (step {done} of {end_step}) in {run_dir}")
     t0 = time.time()
     _, logged = run_training(training.init_fn, training.step_fn, training.batch_fn, cfg, run_dir,
-                             last, tc.log_every, tc.ckpt_every, tc.seed,
+                             end_step, tc.log_every, tc.ckpt_every, tc.seed,
                              progress=progress and not complete, mesh=mesh, max_to_keep=tc.keep_checkpoints or None)
     wall = time.time() - t0
     if not primary:
         return run_dir, logged
     if not complete:
-        record_training(run_dir, last, wall)
+        record_training(run_dir, end_step, wall)
     bench = spec.module("bench")
     from inbetween_jax.data.datasets import is_fit_split
     if is_fit_split(tc.split) and hasattr(bench, "val_score"):

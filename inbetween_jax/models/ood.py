@@ -23,8 +23,9 @@ import os
 
 import numpy as np
 
-__all__ = ["ContextBank", "TravelScore", "SpeedScore", "Gate", "build_bank", "calibrate_gate", "gated_ratio", "BLEND_WEIGHTS", "OOD_FILE", "gate_note", "save_gate", "load_gate", "gated_records", "calibrate_run", "CALIBRATION_FILE",
-           "run_gate", "calibration_worst_case"]
+__all__ = ["ContextBank", "TravelScore", "SpeedScore", "Gate", "build_bank", "calibrate_gate", "gated_ratio",
+           "BLEND_WEIGHTS", "OOD_FILE", "gate_note", "save_gate", "load_gate", "gated_records", "calibrate_run",
+           "CALIBRATION_FILE", "run_gate", "calibration_worst_case"]
 
 OOD_FILE = "ood.npz"                              # the bank and gate in a run folder / shipped weights folder
 BLEND_WEIGHTS = (0.0, 0.25, 0.5, 0.75, 1.0)       # weights of the learned fill at which calibration scores windows
@@ -189,8 +190,8 @@ def gate_note(score: float, weight: float, base: str) -> str:
 
 
 def save_gate(run_dir: str, bank, gate: Gate, summary: dict | None = None) -> str:
-    """Write ``ood.npz`` (the scorer -- a :class:`ContextBank`, :class:`TravelScore` or :class:`SpeedScore` -- + gate thresholds + the
-    calibration summary's numbers) atomically."""
+    """Write ``ood.npz`` (the scorer -- a :class:`ContextBank`, :class:`TravelScore` or :class:`SpeedScore` -- +
+    gate thresholds + the calibration summary's numbers) atomically."""
     path = os.path.join(run_dir, OOD_FILE)
     extra = {f"summary_{k}": np.asarray(v) for k, v in (summary or {}).items()
              if isinstance(v, (int, float, bool, np.floating, np.integer))}
@@ -271,8 +272,9 @@ def run_gate(run_dir: str, enabled: bool):
 
 
 def calibration_worst_case(run_dir: str, gate, model: str, base: str, split: str = "validation subjects") -> list:
-    """Worst-case rows (:func:`inbetween_jax.evaluation.worst_case.worst_case_rows`, split ``split``) of the gate's calibration windows in ``run_dir/ood_calibration.json``, scored at the weights the
-    gate ((scorer, Gate)) gives them; [] without a gate or that file."""
+    """Worst-case rows (:func:`inbetween_jax.evaluation.worst_case.worst_case_rows`, split ``split``) of the gate's
+    calibration windows in ``run_dir/ood_calibration.json``, scored at the weights the gate ((scorer, Gate)) gives
+    them; [] without a gate or that file."""
     import json
     from inbetween_jax.evaluation.worst_case import worst_case_rows
     path = os.path.join(run_dir, CALIBRATION_FILE)

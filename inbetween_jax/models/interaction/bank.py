@@ -38,7 +38,7 @@ __all__ = ["BANK_FILE", "SWITCHES", "MATCH_FRAMES", "FADE", "MotionBank", "gauss
 
 BANK_FILE = "bank.npz"
 SWITCHES = ("model.bank_k", "model.bank_weight", "model.texture_sigma", "model.texture_gain",
-            "model.bank_guessed", "model.bank_sample_weight")                                             # inference only
+            "model.bank_guessed", "model.bank_sample_weight")                # inference only
 MATCH_FRAMES = 3          # last context frames whose joint positions are matched
 VELOCITY_WEIGHT = 5.0     # weight of the last context frame's velocity (m / frame) in the match
 FADE = 4                  # texture fade-in / fade-out frames at either end of the gap
@@ -229,7 +229,7 @@ def arrival_gaps(frames, keypose, threshold_m: float, pos_scale: float, lo: int 
 def bank_enabled(model_cfg) -> bool:
     """Whether a model config asks for the bank at inference."""
     return (model_cfg.bank_k > 0 and model_cfg.bank_weight > 0 or model_cfg.texture_sigma > 0
-            or getattr(model_cfg, "bank_sample_weight", 0.0) > 0)
+            or model_cfg.bank_sample_weight > 0)
 
 
 def apply_bank(bank: MotionBank, model_cfg, frames, context, keypose, gaps, feet=()) -> np.ndarray:
@@ -247,7 +247,7 @@ def apply_bank(bank: MotionBank, model_cfg, frames, context, keypose, gaps, feet
     gaps = np.asarray(gaps).astype(int)
     w, k = float(model_cfg.bank_weight), int(model_cfg.bank_k)
     blend, textured = k > 0 and w > 0, model_cfg.texture_sigma > 0
-    ws = float(getattr(model_cfg, "bank_sample_weight", 0.0)) if out.shape[0] > 1 else 0.0
+    ws = float(model_cfg.bank_sample_weight) if out.shape[0] > 1 else 0.0
     context, keypose = np.asarray(context, np.float32), np.asarray(keypose, np.float32)
     floor = SKATING_HEIGHT_CM * bank.pos_scale
     for g in np.unique(gaps):
@@ -257,7 +257,7 @@ def apply_bank(bank: MotionBank, model_cfg, frames, context, keypose, gaps, feet
             continue
         ctx, kp = context[sel], keypose[sel]
         near = _nearest(bank, ctx, kp, int(g), max(k if blend else 1, out.shape[0] - 1 if ws > 0 else 0))
-        pre = out[:, sel, :, :n].copy()
+        pre = out[:, sel, :, :n].copy() if ws > 0 else None       # the rollouts the sampled mode blends from
         if blend:
             mean = _warped_mean(near[:, :k], ctx, kp, int(g))[:, :, :n]
             out[:, sel, :, :n] = (1 - w) * out[:, sel, :, :n] + w * mean[None]

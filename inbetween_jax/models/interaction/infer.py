@@ -44,7 +44,7 @@ class Trained:
     step: int
     run_dir: str
     bank: MotionBank | None = None    # motion bank (``bank.npz`` in the run folder) when the config uses one
-    gate: tuple | None = None         # (ContextBank, Gate) of ``ood.npz`` when ``model.ood_gate`` is on (:mod:`.gate`)
+    gate: tuple | None = None         # (scorer, Gate) of ``ood.npz`` when ``model.ood_gate`` is on (:mod:`.gate`)
 
 
 def load(run: Run) -> Trained:

@@ -16,32 +16,36 @@ import numpy as np
 __all__ = ["window_l2p", "window_errors_cm", "per_window_rows", "sample_table", "bench_rows"]
 
 
-def _positions(pred, b):
-    """(predicted, true) joint positions (B, 2, L, J, 3) of ``pred`` (B, 2, L, J, 9) and of window ``b``'s gap,
-    both in character A's key space (the common space)."""
+def _common(feats, b) -> np.ndarray:
+    """Joint positions (B, 2, L, J, 3) of features ``feats`` (B, 2, L, J, 9) of window ``b``'s characters in
+    character A's key space (the common space)."""
     import jax.numpy as jnp
-    from inbetween_jax.evaluation.interaction import N_INPUT
     from inbetween_jax.models.interaction.features import to_common_space
-    L = pred.shape[2]
-    P = np.asarray(to_common_space(jnp.asarray(pred), b["rel_R"], b["rel_t"]))[..., :3]
-    G = np.asarray(to_common_space(jnp.asarray(b["x"][:, :, N_INPUT:N_INPUT + L]), b["rel_R"], b["rel_t"]))[..., :3]
-    return P, G
+    return np.asarray(to_common_space(jnp.asarray(feats), b["rel_R"], b["rel_t"]))[..., :3]
+
+
+def _truth(b, L: int) -> np.ndarray:
+    """The common-space joint positions of window ``b``'s L gap frames."""
+    from inbetween_jax.evaluation.interaction import N_INPUT
+    return _common(b["x"][:, :, N_INPUT:N_INPUT + L], b)
+
+
+def _l2p(P, G, std) -> np.ndarray:
+    """Per window L2P of common-space positions P against G (B, 2, L, J, 3); std: the L2P scale (D,)."""
+    z = (P.reshape(P.shape[:3] + (-1,)) - G.reshape(G.shape[:3] + (-1,))) / std          # (B, 2, L, D); mu cancels
+    return np.sqrt(np.sum(z ** 2, -1)).mean((1, 2))
 
 
 def window_l2p(pred, b, stats) -> np.ndarray:
     """Per window: L2P of ``pred`` (B, 2, L, J, 9) against the window's ground truth (the mean of both characters,
     common space), so that its mean over windows is :func:`~inbetween_jax.evaluation.interaction.pair_l2p`."""
-    P, G = _positions(pred, b)
-    std = np.asarray(stats[1], np.float64)                                              # (mu cancels)
-    z = (P.reshape(P.shape[:3] + (-1,)) - G.reshape(G.shape[:3] + (-1,))) / std          # (B, 2, L, D)
-    return np.sqrt(np.sum(z ** 2, -1)).mean((1, 2))
+    return _l2p(_common(pred, b), _truth(b, pred.shape[2]), np.asarray(stats[1], np.float64))
 
 
 def window_errors_cm(pred, b) -> np.ndarray:
     """Per window: mean joint position error (cm) over both characters and the gap frames of ``pred`` (B, 2, L,
     J, 9) against window ``b``'s ground truth, in the common space (positions in metres)."""
-    P, G = _positions(pred, b)
-    return 100.0 * np.linalg.norm(P - G, axis=-1).mean((1, 2, 3))
+    return 100.0 * np.linalg.norm(_common(pred, b) - _truth(b, pred.shape[2]), axis=-1).mean((1, 2, 3))
 
 
 def per_window_rows(trained, method, windows, data: str, lengths=(30, 50)) -> tuple:
@@ -86,8 +90,9 @@ def sample_table(method, windows, stats, cls, num: int = 10, lengths=(30, 50), s
     bench's interaction classifier."""
     import jax
     from inbetween_jax.evaluation import interaction as proto
+    from inbetween_jax.evaluation.samples import pairwise_joint_distance
     from inbetween_jax.metrics import apd
-    from inbetween_jax.models.interaction.features import to_common_space
+    std = np.asarray(stats[1], np.float64)
     rows = []
     for L in lengths:
         b = windows.get(L)
@@ -95,14 +100,13 @@ def sample_table(method, windows, stats, cls, num: int = 10, lengths=(30, 50), s
             continue
         steps = -(-L // 10)
         pred = np.asarray(method(b, steps, num, jax.random.fold_in(jax.random.key(seed), L)))[:, :, :, :L]
-        per = np.stack([window_l2p(p, b, stats) for p in pred])                            # (N, B)
+        common, truth = np.stack([_common(p, b) for p in pred]), _truth(b, L)             # (N, B, 2, L, J, 3)
+        per = np.stack([_l2p(c, truth, std) for c in common])                              # (N, B)
         interp = window_l2p(proto.interpolation_method(b, steps, 1, None)[0][:, :, :L], b, stats)
-        common = np.stack([np.asarray(to_common_space(p, b["rel_R"], b["rel_t"]))[..., :3] for p in pred])
-        pair = [np.linalg.norm(common[i] - common[j], axis=-1).mean() for i in range(num) for j in range(i + 1, num)]
         rows.append({"frames": L, "windows": int(per.shape[1]), "mean_l2p": float(per.mean()),
                      "best_l2p": float(per.min(0).mean()), "interp_l2p": float(interp.mean()),
                      "apd_m": float(apd(common.reshape(common.shape[:2] + (-1,)))),
-                     "pairwise_cm": 100.0 * float(np.mean(pair)) if pair else 0.0,
+                     "pairwise_cm": 100.0 * pairwise_joint_distance(common),
                      "score": float(np.mean([_scores(cls, b, p).mean() for p in pred])),
                      "score_gt": float(_scores(cls, b, b["x"][:, :, proto.N_INPUT:proto.N_INPUT + L]).mean())})
     return rows
