@@ -24,11 +24,13 @@ def main() -> None:
     p.add_argument("--stop-at", type=int, default=None)
     p.add_argument("overrides", nargs="*", metavar="key=value")
     a = p.parse_intermixed_args()
+    from inbetween_jax import xla_cpu
+    xla_cpu.configure(a.model)                                  # as `inbetween train MODEL` runs
     from inbetween_jax.models import REGISTRY
     from inbetween_jax.runner import build_config, train_model
     from inbetween_jax.train import config_to_dict
     from inbetween_jax.shipped import shipped_run
-    from inbetween_jax.train.select import select_with_bench, time_to_score
+    from inbetween_jax.train.select import checkpoint_wall_times, select_with_bench, time_to_score
     shipped = shipped_run(a.model)
     source = a.source or shipped.data.get("source")
     bench = REGISTRY[a.model].module("bench")
@@ -40,7 +42,15 @@ def main() -> None:
           f"{' '.join(recipe['overrides'] + a.overrides)}", flush=True)
     run_dir, _ = train_model(a.model, recipe["preset"], recipe["overrides"] + a.overrides, source,
                              a.run_dir or f"runs/ttq_{a.model}", stop_at=a.stop_at)
-    out = time_to_score(run_dir, select_with_bench(run_dir, source, bench), target)
+    selection = select_with_bench(run_dir, source, bench)
+    out = time_to_score(run_dir, selection, target)
+    scores = {int(k): float(v) for k, v in selection["scores"].items()}
+    walls = checkpoint_wall_times(run_dir, scores)
+    out["checkpoints"] = [{"step": k, "score": scores[k], "train_wall_s": walls[k]} for k in sorted(scores)]
+    for row in out["checkpoints"]:
+        wall = "-" if row["train_wall_s"] is None else f"{row['train_wall_s']:.0f} s"
+        print(f"  step {row['step']:6d}  score {row['score']:.6f} ({row['score'] / target - 1:+.4%} of the target)"
+              f"  training {wall}")
     wall = "-" if out["train_wall_s"] is None else f"{out['train_wall_s']:.0f} s"
     print(f"{a.model}: first checkpoint at or below {target:.4f}: step {out['step']} (score {out['score']}); "
           f"training wall time to it: {wall}")

@@ -22,7 +22,7 @@ import numpy as np
 from inbetween_jax.errors import UserError
 from inbetween_jax.train.run import RUN_FILE, RunError, load_run
 
-__all__ = ["BUILDERS", "interaction_bank", "scvae_bank", "write_bank"]
+__all__ = ["BUILDERS", "interaction_bank", "scvae_bank", "run_fit_split", "write_bank"]
 
 
 def interaction_bank(run, source: str, split: str = "fit", mirror: bool = False):
@@ -56,6 +56,14 @@ def scvae_bank(run, source: str, split: str = "fit", mirror: bool = False):
 BUILDERS = {"interaction": interaction_bank, "scvae": scvae_bank}     # model -> its bank, from the run's data
 
 
+def run_fit_split(run, split: str) -> str:
+    """``split`` for a bank of ``run``: ``"fit"`` means the run's own fit split, so a run trained on
+    ``train.split=fit-subjects`` gets a bank without its validation subjects (``fit`` alone holds out files by
+    name, and would put those subjects' other files in the bank)."""
+    own = str(((run.config or {}).get("train") or {}).get("split", "train"))
+    return "fit-subjects" if split == "fit" and own == "fit-subjects" else split
+
+
 def write_bank(run_dir: str, source: str | None = None, split: str = "fit", mirror: bool = False,
                switches=()) -> dict:
     """Build and write ``run_dir``'s bank, record it (and ``switches``) in its ``run.json``.
@@ -73,6 +81,7 @@ def write_bank(run_dir: str, source: str | None = None, split: str = "fit", mirr
     if mirror and run.model != "scvae":
         raise RunError(f"--mirror: S-CVAE banks only ({run_dir} holds a {run.model} run)")
     source = source or run.data.get("source")
+    split = run_fit_split(run, split)
     bank = BUILDERS[run.model](run, source, split, mirror)
     path = os.path.join(run_dir, RUN_FILE)
     with open(path) as f:

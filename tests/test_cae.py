@@ -124,15 +124,20 @@ def test_output_shape_all_lengths_traced():
                               jax.ShapeDtypeStruct((1, 69, t), jnp.float32)).shape == (1, 69, t)
 
 
-def test_conv_custom_vjp_matches_autodiff():
+@pytest.mark.parametrize("up_h", [True, False])
+def test_conv_upsampled_equals_conv_over_zero_dilated_input(up_h):
+    """The phase-split transposed conv against its definition (a SAME conv over the zero-inserted input):
+    values and both gradients, odd and even sizes."""
     rng = np.random.default_rng(0)
-    x = jnp.asarray(rng.normal(size=(2, 7, 9, 3)), jnp.float32)
-    for k in ((3, 3), (1, 5)):
-        w = jnp.asarray(rng.normal(size=k + (3, 4)), jnp.float32)
-        ref = lambda x, w: jnp.sum(jnp.sin(cae._conv(x, w)))
-        new = lambda x, w: jnp.sum(jnp.sin(cae.conv_same(x, w)))
-        np.testing.assert_allclose(new(x, w), ref(x, w), rtol=1e-5)
-        for a, b in zip(jax.grad(new, (0, 1))(x, w), jax.grad(ref, (0, 1))(x, w)):
+    for shape in ((2, 5, 7, 3), (1, 4, 6, 2), (2, 1, 3, 3)):
+        z = jnp.asarray(rng.normal(size=shape), jnp.float32)
+        w = jnp.asarray(rng.normal(size=(3, 3, shape[-1], 4)), jnp.float32)
+        ref = lambda z, w: jnp.sin(cae.conv_same(cae.upsample_zeros(z, up_h), w))
+        new = lambda z, w: jnp.sin(cae.conv_upsampled(z, w, up_h))
+        np.testing.assert_allclose(new(z, w), ref(z, w), rtol=1e-5, atol=1e-5)
+        assert new(z, w).shape == (shape[0], shape[1] * (2 if up_h else 1), shape[2] * 2, 4)
+        for a, b in zip(jax.grad(lambda *a: new(*a).sum(), (0, 1))(z, w),
+                        jax.grad(lambda *a: ref(*a).sum(), (0, 1))(z, w)):
             np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-4)
 
 

@@ -47,6 +47,21 @@ def _knn(bank, q, r, k=1, tau=0.0):
     return knn_transition(bank, q[None, 0], r[None, 0], q[None, -1], r[None, -1], L, k, tau)
 
 
+def _shipped_copy(tmp_path, **model) -> str:
+    """A copy of the shipped S-CVAE folder without its bank, its config's switches set to ``model`` (the sampled
+    mode off unless given)."""
+    from inbetween_jax.shipped import shipped_dir
+    src = shipped_dir("scvae")
+    if src is None:
+        pytest.skip("no shipped S-CVAE weights")
+    run_dir = str(tmp_path / "scvae")
+    shutil.copytree(src, run_dir, ignore=shutil.ignore_patterns(BANK_FILE))
+    meta = json.load(open(os.path.join(run_dir, "run.json")))
+    meta["config"]["model"].update({"bank_sample_weight": 0.0, **model})
+    json.dump(meta, open(os.path.join(run_dir, "run.json"), "w"))
+    return run_dir
+
+
 def test_a_bank_transition_is_its_own_nearest_in_any_world_placement(bank):
     n = len(bank.index(L)[0])
     assert n > 100 and bank.index(L)[3].shape == (n, 2 * bank.num_joints * 3)
@@ -122,16 +137,8 @@ def test_switches_and_the_bank_in_sample_transitions(bank, tmp_path):
     """A copy of the shipped S-CVAE: without bank.npz its load fails in one line; with ``bank_weight`` 1 its
     samples are the bank's transitions; a mismatched skeleton is refused."""
     from inbetween_jax.models.scvae import infer
-    from inbetween_jax.shipped import shipped_dir
     from inbetween_jax.train.run import load_run
-    src = shipped_dir("scvae")
-    if src is None:
-        pytest.skip("no shipped S-CVAE weights")
-    run_dir = str(tmp_path / "scvae")
-    shutil.copytree(src, run_dir)
-    meta = json.load(open(os.path.join(run_dir, "run.json")))
-    meta["config"]["model"].update(bank_k=4, bank_weight=1.0, bank_tau=0.5)
-    json.dump(meta, open(os.path.join(run_dir, "run.json"), "w"))
+    run_dir = _shipped_copy(tmp_path, bank_k=4, bank_weight=1.0, bank_tau=0.5)
     with pytest.raises(RunError, match="needs bank.npz, which is missing"):
         infer.load(load_run(run_dir))
     bank.save(os.path.join(run_dir, BANK_FILE))
@@ -159,14 +166,10 @@ def test_build_bank_command_writes_the_bank_and_the_switches(tmp_path, capsys):
     """``inbetween build-bank``: one-line errors that write nothing, the bank and its switches in run.json."""
     from inbetween_jax.cli import main
     from inbetween_jax.shipped import shipped_dir
-    src = shipped_dir("scvae")
-    if src is None:
-        pytest.skip("no shipped S-CVAE weights")
 
     class script:                                  # the command line as the tests below call it
         main = staticmethod(lambda argv: main(["build-bank"] + argv))
-    run_dir = str(tmp_path / "scvae")
-    shutil.copytree(src, run_dir)
+    run_dir = _shipped_copy(tmp_path)
     assert script.main([run_dir, "--source", "embedded", "--set", "model.texture_gain=1"]) == 2
     assert "not a bank switch" in capsys.readouterr().err and not os.path.exists(os.path.join(run_dir, BANK_FILE))
     assert script.main([run_dir, "--source", "embedded", "--split", "train", "--set", "model.bank_k=8",
@@ -185,6 +188,11 @@ def test_build_bank_command_writes_the_bank_and_the_switches(tmp_path, capsys):
     mirrored = TransitionBank.load(os.path.join(run_dir, BANK_FILE))
     assert meta["bank"]["mirror"] is True and meta["config"]["model"]["bank_k"] == 8     # switches kept
     assert mirrored.num_frames == 2 * bank.num_frames and mirrored.names[len(bank.names)].endswith(MIRROR_TAG)
+    assert script.main([run_dir, "--source", "embedded", "--split", "fit"]) == 0       # the run's own fit split:
+    meta = json.load(open(os.path.join(run_dir, "run.json")))                             # whole subjects held out
+    assert meta["config"]["train"]["split"] == "fit-subjects" and meta["bank"]["split"] == "fit-subjects"
+    held_out = {os.path.basename(m.source) for m in load_motions("embedded", "val-subjects")}
+    assert held_out and not held_out & set(TransitionBank.load(os.path.join(run_dir, BANK_FILE)).names)
 
 
 def test_transitions_that_spin_are_not_candidates():
@@ -313,3 +321,40 @@ def test_a_mirrored_bank_holds_each_clip_and_its_mirror_image():
     flat = dataclasses.replace(motions[0].skeleton, names=tuple(f"j{i}" for i in range(len(twin))))
     with pytest.raises(UserError, match="mirror"):
         TransitionBank.from_motions([dataclasses.replace(motions[0], skeleton=flat)], fa, mirror=True)
+
+
+def test_each_neighbour_and_the_sampled_mode(bank, tmp_path):
+    """``each``: the nearest of ``each`` is the k = 1 transition, and the k differ; the sampled mode keeps sample 0
+    and moves sample s >= 1 toward the s-th nearest (weight 1: exactly it), in ``sample_transitions`` (after the
+    gate) and in ``infill_between`` alike."""
+    from inbetween_jax.models.scvae import infer
+    from inbetween_jax.train.run import load_run
+    q, r = _bank_transition(bank, 75)
+    q[-1, 5:] = quat_mul(quat_from_axis_angle(np.array([1.0, 0.0, 0.0]), np.float64(0.2)), q[-1, 5:])
+    one = _knn(bank, q, r, k=1)
+    eq, er, _ = knn_transition(bank, q[None, 0], r[None, 0], q[None, -1], r[None, -1], L, 3, each=True)
+    assert eq.shape == (1, 3, L, bank.num_joints, 4) and er.shape == (1, 3, L, 3)
+    np.testing.assert_allclose(er[:, 0], one[1], atol=1e-6)
+    np.testing.assert_allclose(np.abs(np.sum(eq[:, 0] * one[0], -1)), 1.0, atol=1e-6)
+    assert np.abs(er[:, 1] - er[:, 0]).max() > 0.1 and np.abs(er[:, 2] - er[:, 1]).max() > 0.1
+    run_dir = _shipped_copy(tmp_path, bank_sample_weight=1.0)
+    with pytest.raises(RunError, match="needs bank.npz, which is missing"):
+        infer.load(load_run(run_dir))
+    bank.save(os.path.join(run_dir, BANK_FILE))
+    trained = infer.load(load_run(run_dir))
+    wins = load_dataset("embedded", "benchmark").take(slice(0, 3))
+    args = (trained.cfg.model, trained.state, wins, 10, L, 3)
+    gate = dict(gate=trained.gate, forward_axis=trained.extra.get("forward_axis"))
+    plain = infer.sample_transitions(*args, sampled=False, **gate)
+    s = infer.sample_transitions(*args, bank=trained.bank, **gate)
+    np.testing.assert_allclose(s["r"][0], plain["r"][0], atol=1e-6)                 # sample 0: the gated fill
+    k0, k1 = 9, 10 + L
+    eq, er, _ = knn_transition(trained.bank, wins.local_quats[:, k0], wins.root_pos[:, k0], wins.local_quats[:, k1],
+                               wins.root_pos[:, k1], L, 2, each=True)
+    for j in (0, 1):
+        np.testing.assert_allclose(s["r"][1 + j], er[:, j], atol=1e-5)
+    start = {"q": wins.local_quats[0, k0], "r": wins.root_pos[0, k0], "c": wins.contacts[0, k0]}
+    end = {"q": wins.local_quats[0, k1], "r": wins.root_pos[0, k1], "c": wins.contacts[0, k1]}
+    out = infer.infill_between(trained, wins.skeleton, start, end, L, 3)
+    np.testing.assert_allclose(out["r"][1:, 1:-1], er[0], atol=1e-4)
+    assert np.abs(out["r"][0, 1:-1] - er[0, 0]).max() > 0.1                         # sample 0: not the bank's

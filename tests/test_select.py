@@ -60,10 +60,11 @@ def test_an_unreadable_checkpoint_is_skipped_not_fatal(tmp_path):
 
 def test_checkpoints_record_training_time_across_a_resume_and_time_to_score_reads_it(tmp_path):
     """``stop_at`` ends a run early with its schedule unchanged; the resumed run's checkpoints carry on the training
-    wall time; :func:`time_to_score` reports the first checkpoint at or below a target with that time."""
+    wall time; :func:`time_to_score` reports the first checkpoint at or below a target with that time;
+    :func:`checkpoint_wall_times` every checkpoint's."""
     from inbetween_jax.runner import train_model
     from inbetween_jax.train.checkpoint import Checkpointer
-    from inbetween_jax.train.select import time_to_score
+    from inbetween_jax.train.select import checkpoint_wall_times, time_to_score
     run_dir = str(tmp_path / "cae")
     args = ("cae", "tiny", ["train.num_steps=6", "train.ckpt_every=2", "train.log_every=2"], "embedded", run_dir)
     train_model(*args, progress=False, log=None, stop_at=4)
@@ -80,3 +81,4 @@ def test_checkpoints_record_training_time_across_a_resume_and_time_to_score_read
     assert (out["step"], out["score"], out["train_wall_s"]) == (4, 0.7, walls[1])
     assert time_to_score(run_dir, selection, 0.5) == {"target": 0.5, "step": None, "score": None,
                                                       "train_wall_s": None}
+    assert checkpoint_wall_times(run_dir, selection["scores"]) == {2: walls[0], 4: walls[1], 6: walls[2]}

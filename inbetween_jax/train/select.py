@@ -15,7 +15,8 @@ from typing import Callable
 
 from inbetween_jax.train.run import SELECTION_FILE, RunError, _checkpoint_steps, load_run, selected_step
 
-__all__ = ["SELECTION_FILE", "select_checkpoint", "select_with_bench", "selected_step", "time_to_score"]
+__all__ = ["SELECTION_FILE", "select_checkpoint", "select_with_bench", "selected_step", "time_to_score",
+           "checkpoint_wall_times"]
 
 
 def select_checkpoint(run_dir: str, source: str, score_fn: Callable, metric: str,
@@ -78,6 +79,17 @@ def time_to_score(run_dir: str, selection: dict, target: float) -> dict:
         with Checkpointer(os.path.join(run_dir, "checkpoints"), max_to_keep=None) as ck:
             wall = ck.restore_extra(hit[0]).get("train_wall_s")
         out["train_wall_s"] = None if wall is None else float(wall)
+    return out
+
+
+def checkpoint_wall_times(run_dir: str, steps) -> dict:
+    """{step: training wall seconds up to that checkpoint (``train_wall_s``; None where not recorded)}."""
+    from inbetween_jax.train.checkpoint import Checkpointer
+    out = {}
+    with Checkpointer(os.path.join(run_dir, "checkpoints"), max_to_keep=None) as ck:
+        for step in sorted(int(s) for s in steps):
+            wall = ck.restore_extra(step).get("train_wall_s")
+            out[step] = None if wall is None else float(wall)
     return out
 
 

@@ -18,9 +18,9 @@ Deliberate differences, none of which changes a tensor size or the function comp
 * The mask is drawn with torch's generator, so a step's mask differs from JAX's; :func:`loss` takes a given
   mask (the parity test, ``tests/test_torch_cae.py``, gives both frameworks the same one).  Ties at a max-pool or a leaky ReLU at exactly 0 take torch's
   sub-gradient, not JAX's: equal values almost never occur with non-zero biases.
-* The stride-2 transposed conv is zero insertion + a stride-1 conv, as in JAX (``conv_transpose2d`` with the
-  flipped kernel is the same function at a quarter of the multiply-adds; kept out so the work matches).
-* The conv weight gradient is torch's own (JAX's custom VJP computes it as kh*kw shifted-slice matmuls).
+* The stride-2 transposed conv (JAX: zero insertion + a stride-1 conv, computed phase by phase without the
+  zeros, ``model.conv_upsampled``) is torch's ``conv_transpose2d`` with the flipped kernel: the same function,
+  and neither side multiplies the inserted zeros.
 
 API: :func:`available`, :func:`params_from_jax`, :func:`apply`, :func:`loss`, :func:`training_mask` and
 ``make_step(cfg, params, x, mu, matched=0.0, compile_backend=None, seed=0) -> step``: ``step()`` runs one
@@ -70,12 +70,12 @@ def _conv(layer, h):
     return F.conv2d(h, layer["w"], layer["b"], padding="same")
 
 
-def _upsample_zeros(h, up_h: bool):
-    b, c, hh, w = h.shape
-    fh = 2 if up_h else 1
-    out = h.new_zeros(b, c, hh * fh, w * 2)
-    out[:, :, ::fh, ::2] = h
-    return out
+def _conv_upsampled(layer, h, up_h: bool):
+    """SAME conv of ``layer`` over the zero-inserted h (x at even rows if ``up_h`` and even frames): a transposed
+    conv with the flipped kernel, output (B, Cout, 2H or H, 2T)."""
+    w = layer["w"].flip(2, 3).transpose(0, 1)                   # (Cout, Cin, kh, kw) -> (Cin, Cout, kh, kw)
+    return F.conv_transpose2d(h, w, layer["b"], stride=(2 if up_h else 1, 2), padding=1,
+                              output_padding=(1 if up_h else 0, 1))
 
 
 def _network(params, h, cfg):
@@ -96,9 +96,9 @@ def _network(params, h, cfg):
     n = len(params["dec"])
     for u, unit in enumerate(params["dec"]):
         th, tw = sizes[n - 1 - u]
-        h = _upsample_zeros(h, th > h.shape[2])
+        up_h = th > h.shape[2]
         for r, layer in enumerate(unit):
-            h = _conv(layer, h)
+            h = _conv_upsampled(layer, h, up_h) if r == 0 else _conv(layer, h)
             if r == 0:
                 h = h[:, :, :th, :tw]
                 if m.skips:

@@ -38,10 +38,12 @@ upsamples by 2 and crops the result to the size the matching encoder level had, 
 the input's exact shape (e.g. 69 x 240 -> 35 x 120 -> 18 x 60 -> 9 x 30 -> 5 x 15 -> 3 x 8 and back).
 The feature axis is only pooled while it is >= 3 rows high.
 
-All convolutions are stride-1 "SAME" convs through :func:`conv_same`, whose custom VJP computes the weight
-gradient as kh*kw shifted-slice matmuls (XLA:CPU's own conv weight gradient is slow).  A stride-2
-transposed conv is a stride-1 conv over the zero-dilated input (equivalent up to the kernel flip, which a
-learned kernel absorbs); a stride-2 conv is a stride-1 conv sampled every second row / frame.
+All convolutions are stride-1 "SAME" convs (:func:`conv_same`) with XLA's own gradients.  (An earlier custom VJP
+built the weight gradient from kh*kw shifted-slice matmuls; with jax 0.10.2 XLA's own is 1.1-3.8x faster per
+layer, docs/results/speed.md.)  A stride-2 transposed conv is the stride-1 conv over the
+zero-dilated input (equivalent up to the kernel flip, which a learned kernel absorbs), computed without the zeros
+by :func:`conv_upsampled`: one 2x2 (or 3x2) conv on the low-resolution input whose output channels hold the
+even and odd output phases.  A stride-2 conv is a stride-1 conv sampled every second row / frame.
 Weights use Xavier (Glorot) uniform initialisation, biases zero; :func:`init_params` draws them from one
 key split over the parameter leaves in their flattening order (``dec`` before ``enc``, ``b`` before ``w``).
 """
@@ -49,11 +51,13 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from inbetween_jax.baselines.hermite_fill import hermite_fill
 from inbetween_jax.models.cae.masks import linear_prefill
 
-__all__ = ["conv_same", "max_pool_ceil", "upsample_zeros", "level_sizes", "VARIANTS", "FILLS", "param_shapes",
+__all__ = ["conv_same", "conv_upsampled", "max_pool_ceil", "upsample_zeros", "level_sizes", "VARIANTS", "FILLS",
+           "param_shapes",
            "init_params", "prefill", "apply", "encode", "decode", "conv", "num_params"]
 
 VARIANTS = ("cae", "vanilla", "holden1d")
@@ -61,37 +65,35 @@ FILLS = ("linear", "hermite")
 _DN = ("NHWC", "HWIO", "NHWC")
 
 
-def _conv(x, w):
-    return jax.lax.conv_general_dilated(x, w, (1, 1), "SAME", dimension_numbers=_DN)
-
-
-@jax.custom_vjp
 def conv_same(x, w):
     """Stride-1 'SAME' 2D convolution.  x: (B, H, W, Cin); w: (kh, kw, Cin, Cout) with odd kh, kw.
 
-    Returns (B, H, W, Cout).  Same value as ``lax.conv_general_dilated``; only the backward pass differs.
+    Returns (B, H, W, Cout).
     """
-    return _conv(x, w)
+    return jax.lax.conv_general_dilated(x, w, (1, 1), "SAME", dimension_numbers=_DN)
 
 
-def _conv_fwd(x, w):
-    return _conv(x, w), (x, w)
+# Along an upsampled axis, 3 kernel taps d (offsets d - 1 on the zero-dilated input) become 2 output phases e
+# (even, odd) x 2 taps t on the low-resolution input (offsets 0, +1): even outputs see tap 1 at offset 0, odd
+# outputs tap 0 at offset 0 and tap 2 at offset +1.  _PHASES[e, t, d].
+_PHASES = np.zeros((2, 2, 3), np.float32)
+_PHASES[0, 0, 1] = _PHASES[1, 0, 0] = _PHASES[1, 1, 2] = 1.0
 
 
-def _conv_bwd(res, g):
-    x, w = res
-    kh, kw, cin, _ = w.shape
-    (dx,) = jax.linear_transpose(lambda x_: _conv(x_, w), x)(g)   # no dead forward conv in the jaxpr
-    h, wd = x.shape[1], x.shape[2]
-    xp = jnp.pad(x, ((0, 0), (kh // 2, kh // 2), (kw // 2, kw // 2), (0, 0)))
-    g2 = g.reshape(-1, g.shape[-1])
-    dw = jnp.stack([jnp.stack([
-        jnp.dot(xp[:, i:i + h, j:j + wd, :].reshape(-1, cin).T, g2, preferred_element_type=jnp.float32)
-        for j in range(kw)]) for i in range(kh)])
-    return dx, dw.astype(w.dtype)
+def conv_upsampled(z, w, up_h: bool = True):
+    """``conv_same(upsample_zeros(z, up_h), w)`` without multiplying the inserted zeros (a quarter of the
+    multiply-adds when both axes are upsampled).
 
-
-conv_same.defvjp(_conv_fwd, _conv_bwd)
+    z: (B, H, W, Cin); w: (3, 3, Cin, Cout).  Returns (B, 2H or H, 2W, Cout).
+    """
+    ay = _PHASES if up_h else np.eye(3, dtype=np.float32)[None]     # (phases, taps, 3)
+    w2 = jnp.einsum("ets,fuv,svco->tucefo", ay, _PHASES, w)           # (taps_h, taps_w, Cin, Eh, Ew, Cout)
+    kh, kw, cin, eh, ew, cout = w2.shape
+    zp = jnp.pad(z, ((0, 0), (0, 1) if up_h else (1, 1), (0, 1), (0, 0)))
+    out = jax.lax.conv_general_dilated(zp, w2.reshape(kh, kw, cin, eh * ew * cout), (1, 1), "VALID",
+                                       dimension_numbers=_DN)
+    b, h, wd, _ = out.shape
+    return out.reshape(b, h, wd, eh, ew, cout).transpose(0, 1, 3, 2, 4, 5).reshape(b, h * eh, wd * ew, cout)
 
 
 def max_pool_ceil(x, pool_h: bool = True):
@@ -109,7 +111,8 @@ def max_pool_ceil(x, pool_h: bool = True):
 
 
 def upsample_zeros(x, up_h: bool = True):
-    """Zero-insertion upsampling (the input of a stride-2 transposed conv).
+    """Zero-insertion upsampling (the input of a stride-2 transposed conv; the reference for
+    :func:`conv_upsampled`).
 
     x: (B, H, W, C) -> (B, 2H or H, 2W, C) with x at the even positions.
     """
@@ -223,9 +226,9 @@ def decode(params: dict, z, sizes, cfg, skips=None):
     n = len(params["dec"])
     for u, unit in enumerate(params["dec"]):
         th, tw = sizes[n - 1 - u]
-        h = upsample_zeros(h, th > h.shape[1])
+        up_h = th > h.shape[1]
         for r, layer in enumerate(unit):
-            h = conv(layer, h)
+            h = conv_upsampled(h, layer["w"], up_h) + layer["b"] if r == 0 else conv(layer, h)
             if r == 0:
                 h = h[:, :th, :tw]
                 if skips is not None:

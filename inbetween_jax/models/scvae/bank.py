@@ -31,10 +31,11 @@ from inbetween_jax.geometry.quaternion import quat_from_axis_angle, quat_inv, qu
 from inbetween_jax.geometry.quaternion import quat_fix_sign_np, quat_slerp
 
 __all__ = ["BANK_FILE", "SWITCHES", "MIRROR_TAG", "TransitionBank", "keyframe_space", "knn_transition",
-           "knn_base_path", "pad_base_path", "blend", "bank_enabled", "bank_needed", "check_mirror"]
+           "knn_base_path", "pad_base_path", "blend", "sample_blend", "sampled_mode", "bank_enabled", "bank_searched",
+           "bank_needed", "check_mirror"]
 
 BANK_FILE = "bank.npz"
-SWITCHES = ("model.bank_k", "model.bank_weight", "model.bank_tau")     # inference only
+SWITCHES = ("model.bank_k", "model.bank_weight", "model.bank_tau", "model.bank_sample_weight")   # inference only
 CACHED_LENGTHS = 8        # transition lengths whose match features a bank keeps (about 30 MB each for CMU)
 QUERY_CHUNK = 64          # queries warped at once (memory: chunk x k x frames x joints x 4)
 MAX_TURN = np.pi          # bank transitions whose root turns further than this (radians) are not candidates
@@ -244,7 +245,7 @@ def _warped_mean(cand_q, cand_r, key_q, key_r, weights):
 
 
 def knn_transition(bank: TransitionBank, key_q, key_r, tgt_q, tgt_r, length: int, k: int, tau: float = 0.0,
-                   exclude=None):
+                   exclude=None, each: bool = False):
     """The bank's in-between of ``length`` frames between keyframes ``key`` and ``tgt`` (``length + 1`` apart).
 
     key_q, tgt_q: (B, J, 4) local quaternions; key_r, tgt_r: (B, 3) root positions, any world space.
@@ -252,6 +253,8 @@ def knn_transition(bank: TransitionBank, key_q, key_r, tgt_q, tgt_r, length: int
     keyframe's), and the nearest match's distance (B,): root mean square over the joints of both keyframes, in
     the data's units.  exclude: (B,) a bank clip index per query (:meth:`TransitionBank.clip_of`; -1: none)
     whose transitions are not candidates for it (training: a window never retrieves its own motion).
+    ``each``: the k nearest one by one, nearest first, each warped onto the keyframes (no mean): q (B, k, length,
+    J, 4), r (B, k, length, 3) (``tau`` unused).
     """
     frames, yaw_b, xz_b, feats = bank.index(length)
     feats = feats.astype(np.float64)
@@ -285,11 +288,18 @@ def knn_transition(bank: TransitionBank, key_q, key_r, tgt_q, tgt_r, length: int
         cq, cr = _to_space(bank.local_quats[idx].reshape(b * k, n, -1, 4).astype(np.float64),
                            bank.root_pos[idx].reshape(b * k, n, 3).astype(np.float64), yaw_b[near].reshape(-1),
                            xz_b[near].reshape(-1, 2))
-        mq, mr = _warped_mean(cq.reshape(b, k, n, -1, 4), cr.reshape(b, k, n, 3), sq, sr, w)
-        mq, mr = _from_space(mq, mr, yaw, xz)
-        mq[:, 0] = _align(mq[:, 0], q2[:, 0])             # the start keyframe's sign, then continuous in time
-        out_q.append(quat_fix_sign_np(mq, axis=1)[:, 1:-1])
-        out_r.append(mr[:, 1:-1])
+        if each:            # every candidate its own query: (b k) warped transitions
+            rep = lambda a: np.repeat(a, k, 0)
+            mq, mr = _warped_mean(cq[:, None], cr[:, None], rep(sq), rep(sr), np.ones((b * k, 1)))
+            mq, mr = _from_space(mq, mr, rep(yaw), rep(xz))
+            mq[:, 0] = _align(mq[:, 0], rep(q2[:, 0]))
+        else:
+            mq, mr = _warped_mean(cq.reshape(b, k, n, -1, 4), cr.reshape(b, k, n, 3), sq, sr, w)
+            mq, mr = _from_space(mq, mr, yaw, xz)
+            mq[:, 0] = _align(mq[:, 0], q2[:, 0])         # the start keyframe's sign, then continuous in time
+        mq, mr = quat_fix_sign_np(mq, axis=1)[:, 1:-1], mr[:, 1:-1]
+        out_q.append(mq.reshape((b, k) + mq.shape[1:]) if each else mq)
+        out_r.append(mr.reshape((b, k) + mr.shape[1:]) if each else mr)
         out_d.append(np.sqrt(dk[:, 0] / (2 * bank.num_joints)))
     return np.concatenate(out_q), np.concatenate(out_r), np.concatenate(out_d)
 
@@ -323,11 +333,36 @@ def blend(q, r, bank_q, bank_r, weight: float):
     return quat_slerp(q, _align(np.asarray(bank_q, np.float64)[None], q), weight), r + weight * (bank_r[None] - r)
 
 
+def sample_blend(q, r, each_q, each_r, weight: float):
+    """The sampled mode (``model.bank_sample_weight``): sample 0 of q (S, B, L, J, 4), r (S, B, L, 3) as it is,
+    sample s >= 1 slerped / lerped by ``weight`` toward the bank's ``(s - 1) % k``-th nearest transition
+    (``each_q`` (B, k, L, J, 4), ``each_r`` (B, k, L, 3), :func:`knn_transition` with ``each``), so the samples
+    differ by captured motion.  Returns float64 arrays of q's and r's shapes."""
+    q, r = np.array(q, np.float64), np.array(r, np.float64)
+    k = each_q.shape[1]
+    for s in range(1, q.shape[0]):
+        j = (s - 1) % k
+        q[s], r[s] = (x[0] for x in blend(q[s:s + 1], r[s:s + 1], each_q[:, j], each_r[:, j], weight))
+    return q, r
+
+
+def sampled_mode(model_cfg, num_samples: int) -> bool:
+    """The samples after the first are blended with one bank transition each (:func:`sample_blend`)."""
+    return float(getattr(model_cfg, "bank_sample_weight", 0.0)) > 0 and num_samples > 1
+
+
 def bank_enabled(model_cfg) -> bool:
     """The samples are blended with the bank's transition."""
     return int(getattr(model_cfg, "bank_k", 0)) > 0 and float(getattr(model_cfg, "bank_weight", 0.0)) > 0
 
 
-def bank_needed(model_cfg) -> bool:
-    """The model needs a bank: for the blend (:func:`bank_enabled`) or as its residual base (``bank_base``)."""
+def bank_searched(model_cfg) -> bool:
+    """Every sample uses the bank's k-nearest mean transition: blended in (:func:`bank_enabled`) or as the
+    residual base (``bank_base``)."""
     return bank_enabled(model_cfg) or bool(getattr(model_cfg, "bank_base", False))
+
+
+def bank_needed(model_cfg) -> bool:
+    """The model needs a bank: for the blend (:func:`bank_enabled`), as its residual base (``bank_base``) or for
+    the sampled mode (``bank_sample_weight``)."""
+    return bank_searched(model_cfg) or float(getattr(model_cfg, "bank_sample_weight", 0.0)) > 0

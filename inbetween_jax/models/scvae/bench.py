@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from inbetween_jax.models.scvae.bank import bank_enabled, bank_needed, blend
+from inbetween_jax.models.scvae.bank import bank_enabled, bank_searched, blend, sampled_mode
 
 N_PAST = 10
 LENGTHS = (10, 30, 50)
@@ -74,10 +74,10 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
     gated = trained.gate is not None and model_cfg.ood_gate
     fa = tuple(trained.extra.get("forward_axis") or bench.skeleton.forward_axis())
     per_window, sample_table = [], []
-    use_bank, show_bank = (trained.bank is not None and f(model_cfg) for f in (bank_enabled, bank_needed))
+    use_bank, show_bank = (trained.bank is not None and f(model_cfg) for f in (bank_enabled, bank_searched))
     for length in lengths:
         s = infer.sample_transitions(model_cfg, trained.state, bench, N_PAST, length, NUM_SAMPLES, bank=trained.bank,
-                                     blend_bank=False)
+                                     blend_bank=False, sampled=False)
         if show_bank:      # what the bank gives alone (the base of model.bank_base, blended in by bank_weight)
             q, r = s["bank_q"], s["bank_r"]
             rows.append({"method": bank_alone_name(model_cfg), "frames": length, "MMPE": None,
@@ -93,6 +93,9 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
             q, r, _, _ = gate_windows(trained.gate, bench, N_PAST - 1, N_PAST + length, s["q"], s["r"], fa)
             variants = [(UNGATED, s["q"], s["r"]), ("S-CVAE", q, r)]
             s = dict(s, q=q, r=r)
+        if trained.bank is not None and sampled_mode(model_cfg, NUM_SAMPLES):   # samples table only
+            variants.append((SAMPLED, *infer.bank_samples(trained.bank, model_cfg, bench, N_PAST, length, s["q"],
+                                                          s["r"])))
         sample_table += length_rows(bench, N_PAST, length, x_mean, x_std, variants)
         per_window += window_ratios(bench, N_PAST, length, s["q"], s["r"])
         if length == max(lengths):
@@ -161,6 +164,7 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
 OFFICIAL_LENGTHS = (5, 15, 30, 45)
 VELOCITY_BASELINE = "Slerp + start velocity (Hermite)"
 NETWORK_ALONE = "S-CVAE, network alone (no bank)"
+SAMPLED = "S-CVAE, sampled mode"
 UNGATED = "S-CVAE, network alone (no out-of-distribution gate)"
 
 
@@ -213,7 +217,7 @@ def official_rows(trained, bench, x_mean, x_std, name: str) -> list:
                                                base_damping(trained.cfg.model))
         rows.append({"method": base, "frames": n,
                      **official_errors(bench, N_PAST, n, q, r, x_mean, x_std)})
-    use_bank, show_bank = (trained.bank is not None and f(trained.cfg.model) for f in (bank_enabled, bank_needed))
+    use_bank, show_bank = (trained.bank is not None and f(trained.cfg.model) for f in (bank_enabled, bank_searched))
 
     def mean_errors(n, qs, rs):           # over the samples
         per = [official_errors(bench, N_PAST, n, q, r, x_mean, x_std) for q, r in zip(qs, rs)]

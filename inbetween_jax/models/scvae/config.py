@@ -48,6 +48,10 @@ bank: its residual base is the bank's transition instead of Slerp / lerp.  In tr
 from a bank of the training files without the window's own file (the run folder's ``bank.npz``, written when
 training starts), so the network learns to correct the retrieval it will get on unseen motion.  Measured on
 LaFAN1 at 3,000 steps it adds about 1 % to the bank alone and loses to the blend at 50 frames (docs/results/scvae.md).
+``model.bank_sample_weight`` (inference only, 0 in every preset, 0.15 in the shipped CMU weights): with more than
+one sample, sample 0 stays the fill and sample s >= 1 moves by this weight toward the bank's s-th nearest
+transition (:func:`~inbetween_jax.models.scvae.bank.sample_blend`), so the samples differ by captured motion
+(docs/results/scvae.md, "the sampled mode").
 
 ``data.mirror`` (off in every preset) adds every training window's left-right mirror image
 (:meth:`~inbetween_jax.data.windows.MotionWindows.mirrored`): twice the windows, a body's motion again.
@@ -116,6 +120,7 @@ class ModelConfig:
     bank_weight: float = 0.0       # inference: its weight (0: the network alone; 1: the bank alone)
     bank_tau: float = 0.0          # inference: > 0 weights the k by exp(-(d - d1) / (tau d1)); 0: uniform
     bank_base: bool = False        # residual base = the bank's k-nearest transition (bank_k, bank_tau), not Slerp
+    bank_sample_weight: float = 0.0  # inference, more than one sample: sample s >= 1 blends in the bank's s-th nearest
     ood_gate: bool = False         # inference: blend toward Slerp / lerp as the keyframes leave the training motion
     motion_latent: int = 0         # > 0: a per-transition latent of this size, posterior sees the gap (.motion_latent)
     motion_hidden: int = 128       # its posterior / prior MLP width

@@ -20,12 +20,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from inbetween_jax.models.scvae import model as M
-from inbetween_jax.models.scvae.bank import (BANK_FILE, TransitionBank, bank_enabled, bank_needed, blend, knn_base_path,
-                                             knn_transition, pad_base_path)
+from inbetween_jax.models.scvae.bank import (BANK_FILE, TransitionBank, bank_enabled, bank_needed, bank_searched, blend,
+                                             knn_base_path, knn_transition, pad_base_path, sample_blend, sampled_mode)
 from inbetween_jax.models.scvae.losses import fk_positions
 
 __all__ = ["MIN_FRAMES", "Trained", "load", "load_bank", "infill", "frame_range", "infill_between",
-           "keyframe_contacts", "sample_transitions", "bank_transitions"]
+           "keyframe_contacts", "sample_transitions", "bank_transitions", "bank_samples"]
 
 MIN_FRAMES = 3          # L = frames + 1 >= 4 frames between keyframes (model.rollout)
 
@@ -93,9 +93,9 @@ def load_bank(run_dir: str, model_cfg, num_joints: int) -> TransitionBank | None
                        f"lie in 0..1 (got {m.bank_k}, {m.bank_tau}, {m.bank_weight})")
     if not bank_needed(m):
         return None
-    if m.bank_k < 1:
+    if m.bank_base and m.bank_k < 1:
         raise RunError(f"{run_dir}: model.bank_base needs model.bank_k >= 1 (got {m.bank_k})")
-    need = "model.bank_base" if m.bank_base else "model.bank_k"
+    need = "model.bank_base" if m.bank_base else "model.bank_k" if m.bank_k > 0 else "model.bank_sample_weight"
     bank = load_run_file(run_dir, BANK_FILE, TransitionBank.load, need)
     if bank.num_joints != num_joints:
         raise RunError(f"{os.path.join(run_dir, BANK_FILE)}: the bank has {bank.num_joints} joints, the model "
@@ -125,7 +125,8 @@ def _sample_chunk(params, stats, start, target, keys, cfg, max_length, parents):
 
 def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_samples: int, seed: int = 0,
                        chunk: int = 128, velocity: bool = False, bank: TransitionBank | None = None,
-                       blend_bank: bool = True, gate: tuple | None = None, forward_axis=None) -> dict:
+                       blend_bank: bool = True, gate: tuple | None = None, forward_axis=None,
+                       sampled: bool = True) -> dict:
     """Transitions between frame ``n_past - 1`` and frame ``n_past + n_trans`` of every window.
     ``velocity`` (models trained with ``start_velocity`` / ``base_velocity``, protocols with more than one past
     frame): the start keyframe carries frame ``n_past - 2`` (root displacement ``v``, local quaternions ``qp``).
@@ -135,7 +136,9 @@ def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_sampl
     bank is searched once; its transition is returned too (``bank_q`` (B, n_trans, J, 4), ``bank_r``).
     ``gate`` ((ContextBank, Gate), with ``cfg.ood_gate``): the samples are then moved toward Slerp / lerp by the
     out-of-distribution gate (:mod:`.gate`; ``forward_axis``: the root's facing axis), and ``ood_score`` /
-    ``gate_weight`` (B,) are returned.
+    ``gate_weight`` (B,) are returned.  Last, with ``cfg.bank_sample_weight`` > 0, more than one sample and
+    ``sampled``, the sampled mode (:func:`bank_samples`): sample s >= 1 moves toward the bank's s-th nearest
+    transition; sample 0 stays the deterministic fill.
 
     cfg: ModelConfig; state: train state (``params``, ``stats``).
     Returns q (S, B, n_trans, J, 4), r (S, B, n_trans, 3) and, for the bi-directional model, mid_f / mid_b
@@ -144,7 +147,7 @@ def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_sampl
     length = n_trans + 1
     if cfg.bank_base and bank is None:
         raise ValueError("this S-CVAE was trained on the transition bank's base (model.bank_base): pass its bank")
-    use_bank = bank is not None and bank_needed(cfg)
+    use_bank = bank is not None and bank_searched(cfg)
     if use_bank:            # one search for the residual base and the blend
         kq, kr = bank_transitions(bank, cfg, windows, n_past, n_trans)
     keys = jax.random.split(jax.random.key(seed), num_samples)
@@ -173,7 +176,19 @@ def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_sampl
         from inbetween_jax.models.scvae.gate import gate_windows
         out["q"], out["r"], out["ood_score"], out["gate_weight"] = gate_windows(gate, windows, k0, k1, out["q"],
                                                                                out["r"], forward_axis)
+    if sampled and bank is not None and sampled_mode(cfg, num_samples):
+        out["q"], out["r"] = bank_samples(bank, cfg, windows, n_past, n_trans, out["q"], out["r"])
     return out
+
+
+def bank_samples(bank: TransitionBank, cfg, windows, n_past: int, n_trans: int, q, r):
+    """The sampled mode (:func:`.bank.sample_blend`, ``cfg.bank_sample_weight``) on samples q (S, B, n_trans, J,
+    4), r (S, B, n_trans, 3) of the transitions between frames ``n_past - 1`` and ``n_past + n_trans``: sample
+    s >= 1 blended with the bank's s-th nearest transition."""
+    k0, k1 = n_past - 1, n_past + n_trans
+    eq, er, _ = knn_transition(bank, windows.local_quats[:, k0], windows.root_pos[:, k0], windows.local_quats[:, k1],
+                               windows.root_pos[:, k1], n_trans, q.shape[0] - 1, each=True)
+    return sample_blend(q, r, eq, er, cfg.bank_sample_weight)
 
 
 def bank_transitions(bank: TransitionBank, cfg, windows, n_past: int, n_trans: int):
@@ -264,6 +279,11 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
                                                  q[:, None, 1:-1], r[:, None, 1:-1])
         q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
         gated = {"ood_score": float(score[0]), "gate_weight": float(weight[0])}
+    if trained.bank is not None and sampled_mode(m, num_samples):   # sample s >= 1: the bank's s-th nearest
+        eq, er, _ = knn_transition(trained.bank, qs[None], roots[:1], qe[None], roots[1:], frames, num_samples - 1,
+                                   each=True)
+        mid_q, mid_r = sample_blend(q[:, None, 1:-1], r[:, None, 1:-1], eq, er, m.bank_sample_weight)
+        q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
     q[:, 0], r[:, 0], q[:, -1], r[:, -1] = qs, roots[0], qe, roots[1]                 # exact keyframes
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     return {"q": quat_fix_sign_np(q, axis=1), "r": r, **gated}

@@ -20,9 +20,12 @@ RATIO_COLUMNS = ("ratio_mean", "ratio_best", "pairwise_over_slerp")
 def samples_rows(trained, windows, lengths, n_past: int, x_mean, x_std, name: str, num_samples: int = NUM_SAMPLES,
                  seed: int = 0) -> list:
     """Rows ``{"method", "frames", *COLUMNS}``: Slerp, the network's samples before the out-of-distribution
-    gate and, for a gated model, after it.  ``ratio_best`` / ``ratio_mean``: best- / mean-of-N joint error
-    over Slerp's; ``pairwise_over_slerp``: how far apart the samples are, over Slerp's error."""
+    gate and, for a gated model, after it; with ``model.bank_sample_weight`` (and a bank) also the sampled mode
+    (``", sampled mode"``: sample s >= 1 moved toward the bank's s-th nearest transition, after the gate).
+    ``ratio_best`` / ``ratio_mean``: best- / mean-of-N joint error over Slerp's; ``pairwise_over_slerp``: how far
+    apart the samples are, over Slerp's error."""
     from inbetween_jax.models.scvae import infer
+    from inbetween_jax.models.scvae.bank import sampled_mode
     from inbetween_jax.models.scvae.gate import gate_windows
     model_cfg = trained.cfg.model
     gated = trained.gate is not None and model_cfg.ood_gate
@@ -30,11 +33,14 @@ def samples_rows(trained, windows, lengths, n_past: int, x_mean, x_std, name: st
     rows = []
     for n in lengths:
         s = infer.sample_transitions(model_cfg, trained.state, windows, n_past, n, num_samples, seed=seed,
-                                     bank=trained.bank)
+                                     bank=trained.bank, sampled=False)
         variants = [(f"{name}, no gate" if gated else name, s["q"], s["r"])]
         if gated:
             q, r, _, _ = gate_windows(trained.gate, windows, n_past - 1, n_past + n, s["q"], s["r"], fa)
             variants.append((name, q, r))
+        if trained.bank is not None and sampled_mode(model_cfg, num_samples):   # the sampled mode, after the gate
+            variants.append((f"{name}, sampled mode", *infer.bank_samples(trained.bank, model_cfg, windows, n_past,
+                                                                          n, *variants[-1][1:])))
         rows += length_rows(windows, n_past, n, x_mean, x_std, variants)
     return rows
 
