@@ -1,13 +1,13 @@
 """XLA:CPU settings measured faster for this project's models (docs/results/speed.md, "YNNPACK fusions").
 
 XLA:CPU hands dots and convolutions to YNNPACK by default.  On this project's training steps (medians of 9
-steps, one process per setting, 2-3 processes each, ms):
+steps, one process per setting, ranges over 2-6 processes, ms; ``experiments/cae_step_speed.py flags``):
 
     XLA_FLAGS --xla_cpu_experimental_ynn_fusion_type=   default     individual_dot   (empty: none)
-    CAE ``improved``, batch 16                          167-192     149-171          150-152
-    interaction ``improved``, 3 members                1120-1199   1141-1193         991-1023
-    S-CVAE ``cpu`` widths, batch 32                     161-189     166              198
-    S-CVAE ``paper`` widths, batch 32                  1718-1781   1780             2804
+    CAE ``improved``, batch 16                          167-192     147-171          149-152
+    interaction ``improved``, 3 members                1120-1199   1141-1231         980-1146 (median 1018)
+    S-CVAE ``cpu`` widths, batch 32                     161-189     166-170          198-275
+    S-CVAE ``paper`` widths, batch 32                  1696-1781   1761-1780        2804-2878
 
 So the CAE's convolutions are faster in XLA's own (Eigen) kernels, the interaction model is faster with no
 YNNPACK at all, and the S-CVAE's large matmuls need YNNPACK's dots.  :func:`configure` sets the flag for the
