@@ -6,9 +6,10 @@ validation score first reaches the shipped weights' own.
 The recipe is the shipped ``run.json``'s preset and training overrides (``key=value`` adds to them), trained with
 ``inbetween``'s one training path into ``--run-dir`` (default ``runs/ttq_<MODEL>``; resumable).  The target is the
 model's ``bench.val_score`` of the shipped weights, as trained (the inference-only switches set at export off), on
-the same validation split (lower is better).  Every
-checkpoint is scored the way ``inbetween select-checkpoint`` does; the first one at or below the target is reported
-with the training seconds up to it (``train_wall_s`` in the checkpoint, compile time included, scoring excluded).
+the same validation split (lower is better).  Every checkpoint is scored the way ``inbetween select-checkpoint``
+does; every checkpoint's score and training seconds are printed, and the first one at or below the target is
+reported with the training seconds up to it (``train_wall_s`` in the checkpoint, compile time included, scoring
+excluded).
 ``--stop-at N`` ends training after step N with the full schedule (the shipped CAE was stopped at 600 of 1,600).
 """
 import argparse

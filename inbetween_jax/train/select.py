@@ -70,16 +70,10 @@ def time_to_score(run_dir: str, selection: dict, target: float) -> dict:
     :func:`inbetween_jax.train.run_training`, resumed runs included): ``{"target", "step", "score",
     "train_wall_s"}`` (step None and no time when no checkpoint reaches the target; time None for a checkpoint
     written before the wall time was recorded)."""
-    from inbetween_jax.train.checkpoint import Checkpointer
     scores = {int(k): float(v) for k, v in selection.get("scores", {}).items()}
     hit = [s for s in sorted(scores) if scores[s] <= target]
-    out = {"target": float(target), "step": hit[0] if hit else None,
-           "score": scores[hit[0]] if hit else None, "train_wall_s": None}
-    if hit:
-        with Checkpointer(os.path.join(run_dir, "checkpoints"), max_to_keep=None) as ck:
-            wall = ck.restore_extra(hit[0]).get("train_wall_s")
-        out["train_wall_s"] = None if wall is None else float(wall)
-    return out
+    return {"target": float(target), "step": hit[0] if hit else None, "score": scores[hit[0]] if hit else None,
+            "train_wall_s": checkpoint_wall_times(run_dir, hit[:1])[hit[0]] if hit else None}
 
 
 def checkpoint_wall_times(run_dir: str, steps) -> dict:

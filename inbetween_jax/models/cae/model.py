@@ -57,8 +57,7 @@ from inbetween_jax.baselines.hermite_fill import hermite_fill
 from inbetween_jax.models.cae.masks import linear_prefill
 
 __all__ = ["conv_same", "conv_upsampled", "max_pool_ceil", "upsample_zeros", "level_sizes", "VARIANTS", "FILLS",
-           "param_shapes",
-           "init_params", "prefill", "apply", "encode", "decode", "conv", "num_params"]
+           "param_shapes", "init_params", "prefill", "apply", "encode", "decode", "conv", "num_params"]
 
 VARIANTS = ("cae", "vanilla", "holden1d")
 FILLS = ("linear", "hermite")

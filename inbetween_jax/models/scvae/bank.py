@@ -31,7 +31,7 @@ from inbetween_jax.geometry.quaternion import quat_from_axis_angle, quat_inv, qu
 from inbetween_jax.geometry.quaternion import quat_fix_sign_np, quat_slerp
 
 __all__ = ["BANK_FILE", "SWITCHES", "MIRROR_TAG", "TransitionBank", "keyframe_space", "knn_transition",
-           "knn_base_path", "pad_base_path", "blend", "sample_blend", "sampled_mode", "bank_enabled", "bank_searched",
+           "knn_base_path", "pad_base_path", "blend", "sample_blend", "bank_sample_blend", "sampled_mode", "bank_enabled", "bank_searched",
            "bank_needed", "check_mirror"]
 
 BANK_FILE = "bank.npz"
@@ -342,8 +342,17 @@ def sample_blend(q, r, each_q, each_r, weight: float):
     k = each_q.shape[1]
     for s in range(1, q.shape[0]):
         j = (s - 1) % k
-        q[s], r[s] = (x[0] for x in blend(q[s:s + 1], r[s:s + 1], each_q[:, j], each_r[:, j], weight))
+        bq, br = blend(q[s:s + 1], r[s:s + 1], each_q[:, j], each_r[:, j], weight)
+        q[s], r[s] = bq[0], br[0]
     return q, r
+
+
+def bank_sample_blend(bank: TransitionBank, key_q, key_r, tgt_q, tgt_r, q, r, weight: float):
+    """:func:`sample_blend` of samples q (S, B, L, J, 4), r (S, B, L, 3) of the in-betweens between keyframes
+    ``key`` and ``tgt`` (key_q, tgt_q (B, J, 4); key_r, tgt_r (B, 3), the samples' space) with the bank's S - 1
+    nearest transitions (:func:`knn_transition` with ``each``)."""
+    each_q, each_r, _ = knn_transition(bank, key_q, key_r, tgt_q, tgt_r, q.shape[2], q.shape[0] - 1, each=True)
+    return sample_blend(q, r, each_q, each_r, weight)
 
 
 def sampled_mode(model_cfg, num_samples: int) -> bool:

@@ -20,8 +20,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from inbetween_jax.models.scvae import model as M
-from inbetween_jax.models.scvae.bank import (BANK_FILE, TransitionBank, bank_enabled, bank_needed, bank_searched, blend,
-                                             knn_base_path, knn_transition, pad_base_path, sample_blend, sampled_mode)
+from inbetween_jax.models.scvae.bank import (BANK_FILE, TransitionBank, bank_enabled, bank_needed, bank_sample_blend,
+                                             bank_searched, blend, knn_base_path, knn_transition, pad_base_path,
+                                             sampled_mode)
 from inbetween_jax.models.scvae.losses import fk_positions
 
 __all__ = ["MIN_FRAMES", "Trained", "load", "load_bank", "infill", "frame_range", "infill_between",
@@ -186,9 +187,8 @@ def bank_samples(bank: TransitionBank, cfg, windows, n_past: int, n_trans: int, 
     4), r (S, B, n_trans, 3) of the transitions between frames ``n_past - 1`` and ``n_past + n_trans``: sample
     s >= 1 blended with the bank's s-th nearest transition."""
     k0, k1 = n_past - 1, n_past + n_trans
-    eq, er, _ = knn_transition(bank, windows.local_quats[:, k0], windows.root_pos[:, k0], windows.local_quats[:, k1],
-                               windows.root_pos[:, k1], n_trans, q.shape[0] - 1, each=True)
-    return sample_blend(q, r, eq, er, cfg.bank_sample_weight)
+    return bank_sample_blend(bank, windows.local_quats[:, k0], windows.root_pos[:, k0], windows.local_quats[:, k1],
+                             windows.root_pos[:, k1], q, r, cfg.bank_sample_weight)
 
 
 def bank_transitions(bank: TransitionBank, cfg, windows, n_past: int, n_trans: int):
@@ -280,9 +280,8 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
         q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
         gated = {"ood_score": float(score[0]), "gate_weight": float(weight[0])}
     if trained.bank is not None and sampled_mode(m, num_samples):   # sample s >= 1: the bank's s-th nearest
-        eq, er, _ = knn_transition(trained.bank, qs[None], roots[:1], qe[None], roots[1:], frames, num_samples - 1,
-                                   each=True)
-        mid_q, mid_r = sample_blend(q[:, None, 1:-1], r[:, None, 1:-1], eq, er, m.bank_sample_weight)
+        mid_q, mid_r = bank_sample_blend(trained.bank, qs[None], roots[:1], qe[None], roots[1:], q[:, None, 1:-1],
+                                         r[:, None, 1:-1], m.bank_sample_weight)
         q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
     q[:, 0], r[:, 0], q[:, -1], r[:, -1] = qs, roots[0], qe, roots[1]                 # exact keyframes
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
