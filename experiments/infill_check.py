@@ -1,13 +1,17 @@
 """Score the shipped (or given) S-CVAE and CAE through `inbetween infill`'s own path on raw BVH files (any rig and
 rate: each file is matched to the run's joints by name and resampled, as infill does), against the plain
 baselines computed independently here: Slerp / lerp of the keyframes (S-CVAE) and straight-line interpolation of
-the global joint positions across the gap (CAE).  Gaps every ``--stride`` frames; per-gap ratios summarised
-(median, 90th percentile, maximum, share > 1.10x) overall and per activity group, and the CAE's foot lift-offs
-per gap against the capture's and the straight line's (does a walking fill step? ``metrics/steps.py``).
+the global joint positions across the gap (CAE).  The S-CVAE gets the frames beside its keyframes, as infill
+passes them (used with ``model.context_base``, on in the shipped weights); with more than one sample, also the
+best sample's error and the mean pairwise distance between samples over Slerp's error.  Gaps every ``--stride``
+frames; per-gap ratios summarised (median, 90th percentile, maximum, share > 1.10x) overall and per activity
+group, and the CAE's foot lift-offs per gap against the capture's and the straight line's (does a walking fill
+step? ``metrics/steps.py``).
 
-    python experiments/infill_check.py FILE.bvh ... [--scvae-frames 20,30] [--cae-seconds 1,2]
+    python experiments/infill_check.py FILE.bvh ... [--scvae-frames 20,30] [--cae-seconds 1,2] [--samples 10]
 """
 import argparse
+import dataclasses
 import os
 
 import numpy as np
@@ -28,9 +32,19 @@ p.add_argument("files", nargs="+")
 p.add_argument("--scvae-frames", default="20,30")
 p.add_argument("--cae-seconds", default="1,2")
 p.add_argument("--stride", type=int, default=45)
+p.add_argument("--samples", type=int, default=10, help="S-CVAE samples per gap (their errors averaged)")
+p.add_argument("--scvae-set", action="append", default=[], metavar="model.KEY=VALUE",
+               help="an inference switch of the S-CVAE for this check, e.g. model.bank_sample_weight=0.25")
 a = p.parse_args()
 srun, crun = shipped_run("scvae"), shipped_run("cae")
 sm, cm = scvae.load(srun), load_cae(crun)
+for kv in a.scvae_set:
+    key, value = kv.split("=", 1)
+    field = key.removeprefix("model.")
+    kind = type(getattr(sm.cfg.model, field))
+    value = value.lower() in ("1", "true") if kind is bool else kind(value)
+    sm = dataclasses.replace(sm, cfg=dataclasses.replace(sm.cfg, model=dataclasses.replace(sm.cfg.model,
+                                                                                         **{field: value})))
 fa = tuple(sm.extra.get("forward_axis") or sm.skeleton.forward_axis())
 fk = lambda m, q, r: forward_kinematics(q, np.concatenate([r[..., None, :], np.broadcast_to(  # noqa: E731
     m.local_pos[0, 1:], r.shape[:-1] + m.local_pos[0, 1:].shape)], -2), m.skeleton.parents)[1]
@@ -40,16 +54,21 @@ for path in a.files:
     gp = fk(m, m.local_quats, m.root_pos)
     group = activity_group(path)
     for n in [int(x) for x in a.scvae_frames.split(",")]:
-        for k0 in range(1, m.num_frames - n - 2, a.stride):
+        for k0 in range(3, m.num_frames - n - 2, a.stride):   # frames 0-1: often capture start-up
             k1 = k0 + n + 1
-            s = {"q": m.local_quats[k0], "r": m.root_pos[k0], "c": np.zeros(4)}
-            e = {"q": m.local_quats[k1], "r": m.root_pos[k1], "c": np.zeros(4)}
-            out = scvae.infill_between(sm, m.skeleton, s, e, n, 10, 0, fa)
+            s = {"q": m.local_quats[k0], "r": m.root_pos[k0], "c": np.zeros(4), "qp": m.local_quats[k0 - 1],
+                 "rp": m.root_pos[k0 - 1]}                    # the frames beside the keyframes, as infill passes them
+            e = {"q": m.local_quats[k1], "r": m.root_pos[k1], "c": np.zeros(4), "qn": m.local_quats[k1 + 1],
+                 "rn": m.root_pos[k1 + 1]}
+            out = scvae.infill_between(sm, m.skeleton, s, e, n, a.samples, 0, fa)
             bq, br = slerp_base(m.local_quats[k0][None], m.root_pos[k0][None], m.local_quats[k1][None],
                                 m.root_pos[k1][None], n)
-            err = np.linalg.norm(fk(m, out["q"][:, 1:-1], out["r"][:, 1:-1]) - gp[k0 + 1:k1], axis=-1).mean()
+            pos = fk(m, out["q"][:, 1:-1], out["r"][:, 1:-1])                           # (S, n, J, 3)
+            each = np.linalg.norm(pos - gp[k0 + 1:k1], axis=-1).mean((1, 2))
             base = np.linalg.norm(fk(m, bq[0], br[0]) - gp[k0 + 1:k1], axis=-1).mean()
-            res["scvae"].append((group, n, err / base, out.get("gate_weight", 1.0)))
+            i, j = np.triu_indices(len(pos), 1)
+            apart = np.linalg.norm(pos[i] - pos[j], axis=-1).mean() if len(i) else 0.0
+            res["scvae"].append((group, n, each.mean() / base, [each.min() / base, apart / base]))
     cm_m = prepare(read_bvh(path), path, cm.skeleton, crun.fps).motion
     for sec in [float(x) for x in a.cae_seconds.split(",")]:
         g = int(round(sec * crun.fps))
@@ -69,6 +88,10 @@ for model, rows in res.items():
         if s["windows"]:
             print(f"  {grp:12s} n={s['windows']:3d} mean {s['mean']:.3f} median {s['median']:.3f} p90 {s['p90']:.3f} "
                   f"max {s['max']:.3f} share>1.10 {100 * s['share_worse_10pct']:.0f} %")
+        if model == "scvae" and s["windows"] and a.samples > 1:
+            st = np.mean([r[3] for r in rows if grp == "all" or r[0] == grp], 0)
+            print(f"  {'':12s} best of {a.samples} / Slerp's error {st[0]:.3f}, samples apart (mean pairwise "
+                  f"per-joint distance) / Slerp's error {st[1]:.3f}")
         if model == "cae" and s["windows"]:
             st = np.mean([r[3] for r in rows if grp == "all" or r[0] == grp], 0)
             print(f"  {'':12s} lift-offs per gap: fill {st[0]:.2f}, capture {st[1]:.2f}, straight line {st[2]:.2f}")

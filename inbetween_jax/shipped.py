@@ -32,7 +32,8 @@ INFERENCE_SWITCHES = {"interaction": ("model.refiner", "model.latent_scale", "mo
                                       "model.texture_sigma", "model.texture_gain", "model.bank_guessed", "model.ease_frames",
                                       "model.ood_gate", "model.bank_sample_weight"),
                       "scvae": ("model.search", "model.bank_k", "model.bank_weight", "model.bank_tau", "model.ood_gate",
-                                "model.motion_temperature", "model.motion_spread", "model.bank_sample_weight"),
+                                "model.motion_temperature", "model.motion_spread", "model.bank_sample_weight",
+                                "model.bank_sample_gated", "model.context_base", "model.context_damping"),
                       "cae": ("model.mirror_average", "model.ood_gate", "model.root_bound")}
 # Per model: the key-path prefixes of the train state that ``infer.load`` / inference use.
 KEEP = {"scvae": ("params", "stats"),                # generators + normalisation (disc, opt_g, opt_d dropped)

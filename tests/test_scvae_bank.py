@@ -49,7 +49,7 @@ def _knn(bank, q, r, k=1, tau=0.0):
 
 def _shipped_copy(tmp_path, **model) -> str:
     """A copy of the shipped S-CVAE folder without its bank, its config's switches set to ``model`` (the sampled
-    mode off unless given)."""
+    mode off, and not scaled by the gate, unless given)."""
     from inbetween_jax.shipped import shipped_dir
     src = shipped_dir("scvae")
     if src is None:
@@ -57,7 +57,7 @@ def _shipped_copy(tmp_path, **model) -> str:
     run_dir = str(tmp_path / "scvae")
     shutil.copytree(src, run_dir, ignore=shutil.ignore_patterns(BANK_FILE))
     meta = json.load(open(os.path.join(run_dir, "run.json")))
-    meta["config"]["model"].update({"bank_sample_weight": 0.0, **model})
+    meta["config"]["model"].update({"bank_sample_weight": 0.0, "bank_sample_gated": False, **model})
     json.dump(meta, open(os.path.join(run_dir, "run.json"), "w"))
     return run_dir
 
@@ -358,3 +358,30 @@ def test_each_neighbour_and_the_sampled_mode(bank, tmp_path):
     out = infer.infill_between(trained, wins.skeleton, start, end, L, 3)
     np.testing.assert_allclose(out["r"][1:, 1:-1], er[0], atol=1e-4)
     assert np.abs(out["r"][0, 1:-1] - er[0, 0]).max() > 0.1                         # sample 0: not the bank's
+
+
+def test_gated_sampled_mode_moves_each_sample_by_the_gates_weight(bank, tmp_path):
+    """``model.bank_sample_gated``: sample s >= 1 moves toward the s-th nearest transition by the sampled-mode
+    weight times the gate's weight per window, so where the gate closes (the test subjects' motion in place) the
+    samples stay the fill."""
+    from inbetween_jax.models.scvae import infer
+    from inbetween_jax.train.run import load_run
+    run_dir = _shipped_copy(tmp_path, bank_sample_weight=1.0, bank_sample_gated=True)
+    bank.save(os.path.join(run_dir, BANK_FILE))
+    trained = infer.load(load_run(run_dir))
+    wins = load_dataset("embedded", "benchmark").take(slice(0, 12))
+    args = (trained.cfg.model, trained.state, wins, 10, L, 3)
+    gate = dict(gate=trained.gate, forward_axis=trained.extra.get("forward_axis"))
+    plain = infer.sample_transitions(*args, sampled=False, **gate)          # each sample's gated fill
+    s = infer.sample_transitions(*args, bank=trained.bank, **gate)
+    w = s["gate_weight"]
+    assert (w < 0.5).any()
+    k0, k1 = 9, 10 + L
+    _, er, _ = knn_transition(trained.bank, wins.local_quats[:, k0], wins.root_pos[:, k0], wins.local_quats[:, k1],
+                              wins.root_pos[:, k1], L, 2, each=True)
+    for j in (0, 1):
+        expected = plain["r"][1 + j] + w[:, None, None] * (er[:, j] - plain["r"][1 + j])
+        np.testing.assert_allclose(s["r"][1 + j], expected, atol=1e-5)
+    closed = w == 0.0
+    assert closed.any()
+    np.testing.assert_allclose(s["q"][:, closed], plain["q"][:, closed], atol=1e-6)

@@ -64,7 +64,8 @@ def test_cae_shipped_output_matches_checkpoint(shipped):
 def test_scvae_shipped_output_matches_checkpoint(shipped):
     from inbetween_jax.data.datasets import GENERIC_CONTACT_VELFACTOR
     from inbetween_jax.data.user_input import read_motion
-    from inbetween_jax.models.scvae.infer import infill_between, keyframe_contacts
+    from inbetween_jax.models.scvae.features import keyframe_contacts
+    from inbetween_jax.models.scvae.infer import infill_between
     a, b = _loads("scvae", shipped)
     for k in b.stats:                          # normalisation statistics ship in float32: exact
         np.testing.assert_array_equal(np.asarray(a.stats[k]), np.asarray(b.stats[k]))

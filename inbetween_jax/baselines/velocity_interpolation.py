@@ -20,7 +20,7 @@ import numpy as np
 from inbetween_jax.baselines.interpolation import interpolate_transition
 from inbetween_jax.geometry import quat_conj, quat_from_axis_angle, quat_mul, quat_to_axis_angle
 
-__all__ = ["hermite_weights", "rotation_vector", "rotation_from_vector", "velocity_offsets",
+__all__ = ["hermite_weights", "end_hermite_weights", "rotation_vector", "rotation_from_vector", "velocity_offsets",
            "velocity_interpolate_transition"]
 
 
@@ -45,25 +45,45 @@ def rotation_from_vector(v):
     return quat_from_axis_angle(v / jnp.maximum(angle, 1e-12)[..., None], angle)
 
 
-def velocity_offsets(q_prev, q0, q1, r_prev, r0, r1, length, max_length: int, damping: float = 0.0):
+def end_hermite_weights(length, max_length: int, damping: float = 0.0):
+    """(T1,) ``-t * (t / L) * (1 - t / L) * exp(-damping * (L - t))`` at t = 0..max_length (the end tangent's
+    basis, zero at both keyframes and from ``t = L`` on)."""
+    t = jnp.arange(max_length + 1, dtype=jnp.float32)
+    n = jnp.maximum(length, 1).astype(jnp.float32)
+    s = jnp.clip(t / n, 0.0, 1.0)
+    return -t * s * (1.0 - s) * jnp.exp(-damping * jnp.maximum(n - t, 0.0))
+
+
+def velocity_offsets(q_prev, q0, q1, r_prev, r0, r1, length, max_length: int, damping: float = 0.0,
+                     q_next=None, r_next=None):
     """Apply-ready Hermite offsets at t = 0..max_length.
 
     q_prev / q0 / q1: (B, J, 4) local quaternions of the frame before the start keyframe, the start and the
-    target keyframe (q1 sign-aligned to q0); r_*: (B, 3) root positions.  Returns (dq (B, T1, J, 4) to
-    right-multiply onto the Slerp path, dr (B, T1, 3) to add to the lerp); damping: module docstring."""
+    target keyframe (q1 sign-aligned to q0); r_*: (B, 3) root positions; q_next / r_next (optional): the frame
+    after the target, for the two-sided form; q_prev = r_prev = None: no start term (the path leaves the start
+    keyframe at the interpolation's velocity).  Returns (dq (B, T1, J, 4) to right-multiply onto the Slerp path,
+    dr (B, T1, 3) to add to the lerp); damping: module docstring."""
     n = jnp.maximum(length, 1).astype(jnp.float32)
-    f = hermite_weights(length, max_length, damping)
-    w_motion = rotation_vector(quat_mul(quat_conj(q_prev), q0))
     w_interp = rotation_vector(quat_mul(quat_conj(q0), q1)) / n
-    dq = rotation_from_vector((w_motion - w_interp)[:, None] * f[None, :, None, None])
-    dr = ((r0 - r_prev) - (r1 - r0) / n)[:, None] * f[None, :, None]
-    return dq, dr
+    w = jnp.zeros(q0.shape[:1] + (max_length + 1,) + w_interp.shape[1:], jnp.float32)
+    dr = jnp.zeros(r0.shape[:1] + (max_length + 1, 3), jnp.float32)
+    if q_prev is not None:
+        f = hermite_weights(length, max_length, damping)
+        w = w + (rotation_vector(quat_mul(quat_conj(q_prev), q0)) - w_interp)[:, None] * f[None, :, None, None]
+        dr = dr + ((r0 - r_prev) - (r1 - r0) / n)[:, None] * f[None, :, None]
+    if q_next is not None:
+        g = end_hermite_weights(length, max_length, damping)
+        w = w + (rotation_vector(quat_mul(quat_conj(q1), q_next)) - w_interp)[:, None] * g[None, :, None, None]
+        dr = dr + ((r_next - r1) - (r1 - r0) / n)[:, None] * g[None, :, None]
+    return rotation_from_vector(w), dr
 
 
-def velocity_interpolate_transition(local_quats, root_pos, n_past: int, n_trans: int, damping: float = 0.0):
+def velocity_interpolate_transition(local_quats, root_pos, n_past: int, n_trans: int, damping: float = 0.0,
+                                    end_velocity: bool = False):
     """The transition frames ``n_past .. n_past + n_trans - 1`` between keyframes ``n_past - 1`` and
     ``n_past + n_trans``, continuing the motion of frame ``n_past - 2`` (needs ``n_past >= 2``); damping:
-    module docstring.
+    module docstring.  end_velocity: also arrive with the motion of frame ``n_past + n_trans + 1`` (the two-sided
+    form; needs that frame).
 
     local_quats: (B, T, J, 4); root_pos: (B, T, 3).  Returns (quats (B, n_trans, J, 4), root (B, n_trans, 3)),
     float64 numpy."""
@@ -73,10 +93,16 @@ def velocity_interpolate_transition(local_quats, root_pos, n_past: int, n_trans:
     r = np.asarray(root_pos, np.float64)
     sl, lerp = interpolate_transition(q, r, n_past, n_trans)                     # the official interpolation
     k0, k1, length = n_past - 1, n_past + n_trans, n_trans + 1
+    if end_velocity and q.shape[1] <= k1 + 1:
+        raise ValueError(f"end_velocity: the clips have no frame after the target keyframe {k1}")
     q1 = q[:, k1] * np.where(np.sum(q[:, k1] * q[:, k0], -1, keepdims=True) < 0, -1.0, 1.0)
+    nxt = {}
+    if end_velocity:
+        q2 = q[:, k1 + 1] * np.where(np.sum(q[:, k1 + 1] * q1, -1, keepdims=True) < 0, -1.0, 1.0)
+        nxt = {"q_next": jnp.asarray(q2, jnp.float32), "r_next": jnp.asarray(r[:, k1 + 1], jnp.float32)}
     dq, dr = velocity_offsets(*(jnp.asarray(x, jnp.float32) for x in (q[:, k0 - 1], q[:, k0], q1, r[:, k0 - 1],
                                                                       r[:, k0], r[:, k1])), length, length,
-                                damping)
+                                damping, **nxt)
     quats = quat_mul(np.asarray(sl, np.float64), np.asarray(dq[:, 1:length], np.float64))
     quats /= np.linalg.norm(quats, axis=-1, keepdims=True)
     return quats, np.asarray(lerp, np.float64) + np.asarray(dr[:, 1:length], np.float64)

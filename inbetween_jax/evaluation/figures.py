@@ -44,7 +44,7 @@ PANELS = (
 )
 # non-learned rows, drawn dashed (model names as the benches write them)
 BASELINE_MODELS = frozenset({"Slerp", "Zero-velocity", "slerp", "slerp_velocity", "linear", "hermite",
-                             "interpolation", "interpolation_guess", "hold", "bank"})
+                             "hermite_context", "interpolation", "interpolation_guess", "hold", "bank"})
 SKIPPED_MODELS = frozenset({"ground_truth", "paper"})   # zero error / another data set's published numbers
 DATA_ALIASES = {"cmu-embedded": "embedded", "bvh-folder": "bvh", "cmu": "bvh"}
 

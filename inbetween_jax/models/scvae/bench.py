@@ -38,6 +38,7 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
     from inbetween_jax.evaluation.worst_case import worst_case_markdown, worst_case_rows
     from inbetween_jax.models.ood import calibration_worst_case
     from inbetween_jax.models.scvae import infer
+    from inbetween_jax.models.scvae.context import HERMITE_NAME, IN_CLIP_NAME, in_clip
     from inbetween_jax.models.scvae.gate import gate_windows
     from inbetween_jax.models.scvae.samples import COLUMNS as SAMPLE_COLUMNS
     from inbetween_jax.models.scvae.samples import RATIO_COLUMNS, length_rows
@@ -73,7 +74,7 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
     model_cfg = trained.cfg.model
     gated = trained.gate is not None and model_cfg.ood_gate
     fa = tuple(trained.extra.get("forward_axis") or bench.skeleton.forward_axis())
-    per_window, sample_table = [], []
+    per_window, sample_table, clip_window = [], [], []
     use_bank, show_bank = (trained.bank is not None and f(model_cfg) for f in (bank_enabled, bank_searched))
     for length in lengths:
         s = infer.sample_transitions(model_cfg, trained.state, bench, N_PAST, length, NUM_SAMPLES, bank=trained.bank,
@@ -86,18 +87,24 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
             rows.append({"method": NETWORK_ALONE, "frames": length, "MMPE": None,
                          **transition_metrics(bench, N_PAST, length, s["q"], s["r"], x_mean, x_std)})
             s = dict(s, **dict(zip(("q", "r"), blend(s["q"], s["r"], q, r, model_cfg.bank_weight))))
-        variants = [("S-CVAE", s["q"], s["r"])]
+        variants, weight = [("S-CVAE", s["q"], s["r"])], None
         if gated:          # the network before the gate, then the gated samples (models/ood.py)
             rows.append({"method": UNGATED, "frames": length, "MMPE": None,
                          **transition_metrics(bench, N_PAST, length, s["q"], s["r"], x_mean, x_std)})
-            q, r, _, _ = gate_windows(trained.gate, bench, N_PAST - 1, N_PAST + length, s["q"], s["r"], fa)
+            q, r, _, weight = gate_windows(trained.gate, bench, N_PAST - 1, N_PAST + length, s["q"], s["r"], fa)
             variants = [(UNGATED, s["q"], s["r"]), ("S-CVAE", q, r)]
             s = dict(s, q=q, r=r)
         if trained.bank is not None and sampled_mode(model_cfg, NUM_SAMPLES):   # samples table only
             variants.append((SAMPLED, *infer.bank_samples(trained.bank, model_cfg, bench, N_PAST, length, s["q"],
-                                                          s["r"])))
+                                                          s["r"], weight)))
         sample_table += length_rows(bench, N_PAST, length, x_mean, x_std, variants)
         per_window += window_ratios(bench, N_PAST, length, s["q"], s["r"])
+        if model_cfg.context_base:     # inside a clip: onto the Hermite path through the frames beside the keyframes
+            cq, cr, hq, hr = in_clip(bench, N_PAST, length, s["q"], s["r"], model_cfg.context_damping)
+            rows += [{"method": name, "frames": length, "MMPE": None,
+                      **transition_metrics(bench, N_PAST, length, q_, r_, x_mean, x_std)}
+                     for name, q_, r_ in ((HERMITE_NAME, hq, hr), (IN_CLIP_NAME, cq, cr))]
+            clip_window += window_ratios(bench, N_PAST, length, cq, cr)
         if length == max(lengths):
             longest = s
         row = {"method": "S-CVAE", "frames": length,
@@ -105,7 +112,7 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
         row["MMPE"] = (float(metrics.mmpe(s["mid_f"][:, :, None], s["mid_b"][:, :, None], mid_index=0))
                        if "mid_f" in s else None)
         rows.append(row)
-    order = {"Slerp": 0, "S-CVAE": 1, NETWORK_ALONE: 2, UNGATED: 3}
+    order = {"Slerp": 0, "S-CVAE": 1, NETWORK_ALONE: 2, UNGATED: 3, HERMITE_NAME: 4, IN_CLIP_NAME: 5}
     rows.sort(key=lambda r: (r["frames"], order.get(r["method"], 3)))
     cols = tuple(TABLE_COLUMNS) + ("MMPE",)
     variant = f"S-CVAE ({run_.preset})"
@@ -128,8 +135,11 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
     wc += calibration_worst_case(run_.run_dir, trained.gate, "scvae", "Slerp")
     md += "\n\n" + worst_case_markdown([r for r in wc if r["split"] == "test"],
                                         f"S-CVAE per window, test windows{' (gated)' if gated else ''}")
-    if any(r["split"] != "test" for r in wc):
-        md += "\n\n" + worst_case_markdown([r for r in wc if r["split"] != "test"],
+    clip = worst_case_rows(clip_window, "per_window", data_name(source), "scvae", "Slerp", "test, inside a clip")
+    if clip:
+        md += "\n\n" + worst_case_markdown(clip, f"{IN_CLIP_NAME}, per window, test windows")
+    if any(r["split"] not in ("test", "test, inside a clip") for r in wc):
+        md += "\n\n" + worst_case_markdown([r for r in wc if r["split"] not in ("test", "test, inside a clip")],
                                             "S-CVAE per window, validation subjects (the gate's calibration windows)")
     os.makedirs(results_dir, exist_ok=True)
     plot = error_over_time_plot(bench, max(lengths), longest, "S-CVAE",
@@ -152,7 +162,10 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
     for table, rs in (("table1", rows),) if gated else ():
         records += flat_rows([r for r in rs if r["method"] == UNGATED], table, data, model="scvae",
                              variant=f"{run_.preset}, network alone (no gate)")
-    records += wc
+    records += (wc + clip + flat_rows([r for r in rows if r["method"] == HERMITE_NAME], "table1", data,
+                                      model="hermite_context")
+                + flat_rows([r for r in rows if r["method"] == IN_CLIP_NAME], "table1", data, model="scvae",
+                            variant=f"{run_.preset}, inside a clip"))
     for method, model, var in (("Slerp", "slerp", ""), (variant, "scvae", run_.preset),
                                (UNGATED, "scvae", f"{run_.preset}, network alone (no gate)")):
         records += flat_rows([r for r in sample_table if r["method"] == method], "samples", data, model=model,

@@ -53,6 +53,12 @@ one sample, sample 0 stays the fill and sample s >= 1 moves by this weight towar
 transition (:func:`~inbetween_jax.models.scvae.bank.sample_blend`), so the samples differ by captured motion
 (docs/results/scvae.md, "the sampled mode").
 
+``model.context_base`` (inference only, off in every preset, on in the shipped CMU weights): where the frames
+beside the keyframes are known (``inbetween infill`` inside a file), the fill's departure from Slerp / lerp is
+added onto the two-sided Hermite path that continues the motion on both sides
+(:mod:`inbetween_jax.models.scvae.context`, damped by ``model.context_damping``), not onto Slerp.  The Table-1
+protocol (two keyframes) is unchanged.
+
 ``data.mirror`` (off in every preset) adds every training window's left-right mirror image
 (:meth:`~inbetween_jax.data.windows.MotionWindows.mirrored`): twice the windows, a body's motion again.
 ``data.tempo`` (off in every preset; e.g. ``data.tempo=0.8,1.25``) adds, for each speed ``s``, the training files
@@ -121,7 +127,10 @@ class ModelConfig:
     bank_tau: float = 0.0          # inference: > 0 weights the k by exp(-(d - d1) / (tau d1)); 0: uniform
     bank_base: bool = False        # residual base = the bank's k-nearest transition (bank_k, bank_tau), not Slerp
     bank_sample_weight: float = 0.0  # inference, more than one sample: sample s >= 1 blends in the bank's s-th nearest
+    bank_sample_gated: bool = False  # ... by that weight times the gate's (with ood_gate): none where the gate closes
     ood_gate: bool = False         # inference: blend toward Slerp / lerp as the keyframes leave the training motion
+    context_base: bool = False     # inference: frames beside the keyframes known -> onto the Hermite path (.context)
+    context_damping: float = 0.1   # ... its velocity terms faded by exp(-context_damping * t) (per frame)
     motion_latent: int = 0         # > 0: a per-transition latent of this size, posterior sees the gap (.motion_latent)
     motion_hidden: int = 128       # its posterior / prior MLP width
     motion_spread: int = 1         # sampling: > 1 picks the N motion draws far apart among this x N prior draws

@@ -157,3 +157,31 @@ def phase_labels(contacts: np.ndarray, half_window: int = 15) -> np.ndarray:
             out[i, :, 2 * f] = amp * np.sin(2 * np.pi * phi)
             out[i, :, 2 * f + 1] = amp * np.cos(2 * np.pi * phi)
     return out
+
+
+def keyframe_contacts(motion, frame: int, velfactor: float) -> np.ndarray:
+    """(4,) foot contacts of one frame, from its displacement to the next frame (previous for the last)."""
+    from inbetween_jax.data.features import foot_contacts
+    from inbetween_jax.geometry import forward_kinematics
+    n = motion.num_frames
+    if n < 2:
+        return np.zeros(4, np.float32)
+    a, b = (frame, frame + 1) if frame + 1 < n else (frame - 1, frame)
+    _, gp = forward_kinematics(motion.local_quats[[a, b]], motion.local_pos[[a, b]], motion.skeleton.parents)
+    return foot_contacts(gp[:, list(motion.skeleton.foot_joints())], velfactor)[0]
+
+
+def past_frame_inputs(start: dict, yaw, q0) -> dict:
+    """The start keyframe's ``v`` (1, 3) root displacement from the frame before and ``qp`` (1, J, 4) that
+    frame's local quaternions, turned into the canonical space (``yaw``: canonical -> world root rotation) and
+    sign-aligned to the canonical start keyframe ``q0`` (J, 4), as consecutive training frames are."""
+    from inbetween_jax.data.user_input import check_unit_quats
+    from inbetween_jax.geometry import quat_inv, quat_mul, quat_rotate
+    qp = np.array(check_unit_quats(start["qp"], "start's previous frame q"), np.float64)
+    inv = quat_inv(np.asarray(yaw, np.float64))
+    qp[0] = quat_mul(inv, qp[0])
+    qp = np.where(np.sum(qp * np.asarray(q0, np.float64), -1, keepdims=True) < 0, -qp, qp)
+    v = quat_rotate(inv, np.asarray(start["r"], np.float64) - np.asarray(start["rp"], np.float64))
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"start's previous frame r: expected 3 finite numbers, got {start['rp']!r}")
+    return {"v": jnp.asarray(v[None], jnp.float32), "qp": jnp.asarray(qp[None], jnp.float32)}

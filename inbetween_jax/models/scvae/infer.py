@@ -23,10 +23,12 @@ from inbetween_jax.models.scvae import model as M
 from inbetween_jax.models.scvae.bank import (BANK_FILE, TransitionBank, bank_enabled, bank_needed, bank_sample_blend,
                                              bank_searched, blend, knn_base_path, knn_transition, pad_base_path,
                                              sampled_mode)
+from inbetween_jax.models.scvae.context import context_kind, context_offsets, onto_context
+from inbetween_jax.models.scvae.features import keyframe_contacts, past_frame_inputs
 from inbetween_jax.models.scvae.losses import fk_positions
 
 __all__ = ["MIN_FRAMES", "Trained", "load", "load_bank", "infill", "frame_range", "infill_between",
-           "keyframe_contacts", "sample_transitions", "bank_transitions", "bank_samples"]
+           "sample_transitions", "bank_transitions", "bank_samples"]
 
 MIN_FRAMES = 3          # L = frames + 1 >= 4 frames between keyframes (model.rollout)
 
@@ -178,17 +180,29 @@ def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_sampl
         out["q"], out["r"], out["ood_score"], out["gate_weight"] = gate_windows(gate, windows, k0, k1, out["q"],
                                                                                out["r"], forward_axis)
     if sampled and bank is not None and sampled_mode(cfg, num_samples):
-        out["q"], out["r"] = bank_samples(bank, cfg, windows, n_past, n_trans, out["q"], out["r"])
+        out["q"], out["r"] = bank_samples(bank, cfg, windows, n_past, n_trans, out["q"], out["r"],
+                                          out.get("gate_weight"))
     return out
 
 
-def bank_samples(bank: TransitionBank, cfg, windows, n_past: int, n_trans: int, q, r):
+def sample_weight(cfg, gate_weight=None):
+    """The sampled mode's blend weight: ``cfg.bank_sample_weight``, times the gate's weight (a number or (B,)
+    array) with ``cfg.bank_sample_gated``, so samples leave the fill toward captured motion only where the gate
+    says the keyframes are inside the training motion.  Returns a number or a (B, 1, 1) array."""
+    if not cfg.bank_sample_gated or gate_weight is None:
+        return cfg.bank_sample_weight
+    w = cfg.bank_sample_weight * np.asarray(gate_weight, np.float64)
+    return float(w) if w.ndim == 0 else w[:, None, None]
+
+
+def bank_samples(bank: TransitionBank, cfg, windows, n_past: int, n_trans: int, q, r, gate_weight=None):
     """The sampled mode (:func:`.bank.sample_blend`, ``cfg.bank_sample_weight``) on samples q (S, B, n_trans, J,
     4), r (S, B, n_trans, 3) of the transitions between frames ``n_past - 1`` and ``n_past + n_trans``: sample
-    s >= 1 blended with the bank's s-th nearest transition."""
+    s >= 1 blended with the bank's s-th nearest transition (weight :func:`sample_weight`, ``gate_weight`` (B,)
+    the gate's per window)."""
     k0, k1 = n_past - 1, n_past + n_trans
     return bank_sample_blend(bank, windows.local_quats[:, k0], windows.root_pos[:, k0], windows.local_quats[:, k1],
-                             windows.root_pos[:, k1], q, r, cfg.bank_sample_weight)
+                             windows.root_pos[:, k1], q, r, sample_weight(cfg, gate_weight))
 
 
 def bank_transitions(bank: TransitionBank, cfg, windows, n_past: int, n_trans: int):
@@ -200,18 +214,6 @@ def bank_transitions(bank: TransitionBank, cfg, windows, n_past: int, n_trans: i
 
 
 # ----------------------------------------------------------------------------- users' keyframes
-def keyframe_contacts(motion, frame: int, velfactor: float) -> np.ndarray:
-    """(4,) foot contacts of one frame, from its displacement to the next frame (previous for the last)."""
-    from inbetween_jax.data.features import foot_contacts
-    from inbetween_jax.geometry import forward_kinematics
-    n = motion.num_frames
-    if n < 2:
-        return np.zeros(4, np.float32)
-    a, b = (frame, frame + 1) if frame + 1 < n else (frame - 1, frame)
-    _, gp = forward_kinematics(motion.local_quats[[a, b]], motion.local_pos[[a, b]], motion.skeleton.parents)
-    return foot_contacts(gp[:, list(motion.skeleton.foot_joints())], velfactor)[0]
-
-
 @functools.partial(jax.jit, static_argnames=("cfg", "max_length"))
 def _sample_pair(params, stats, start, target, keys, cfg, max_length):
     out = M.sample(params, cfg, stats, start, target, max_length, keys, max_length)["out"]
@@ -224,11 +226,14 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
 
     start / end: dicts with ``q`` (J, 4) unit local quaternions, ``r`` (3,) root position, ``c`` (4,) foot
     contacts; ``start`` may also carry the frame before it, ``qp`` (J, 4) and ``rp`` (3,), which models trained
-    with the past frame (``ModelConfig.uses_past_frame``) continue (ignored by the others).
+    with the past frame (``ModelConfig.uses_past_frame``) continue, and ``end`` the frame after it, ``qn`` and
+    ``rn``: with ``model.context_base`` the fill follows the Hermite path through them (:mod:`.context`).
     skeleton: the keyframes' skeleton (its offsets give the FK of the canonicalisation).
     forward_axis: the root's local facing axis (default: inferred from ``skeleton``).
     Returns ``q`` (S, frames + 2, J, 4) and ``r`` (S, frames + 2, 3) float64 in the keyframes' world space;
-    frame 0 is ``start`` and frame ``frames + 1`` is ``end``, both exactly as given.
+    frame 0 is ``start`` and frame ``frames + 1`` is ``end``, both exactly as given; ``context``: which
+    neighbouring frames the fill continues (:func:`~.context.context_kind`), and with the gate ``ood_score`` and
+    ``gate_weight``.
 
     Raises:
         ValueError: (one line naming the array) frames out of range, non-unit quaternions, bad root positions.
@@ -256,7 +261,7 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
                           "c": jnp.asarray(np.asarray(c, np.float32)[None])}
     first = frame(0, start["c"])
     if trained.cfg.model.uses_past_frame and "qp" in start:
-        first.update(_past_frame(start, yaw, cq[0, 0]))
+        first.update(past_frame_inputs(start, yaw, cq[0, 0]))
     m = trained.cfg.model
     if trained.bank is not None and m.bank_base:      # the residual base, in the canonical space
         first.update(zip(("base_q", "base_r"), map(jnp.asarray, knn_base_path(
@@ -279,29 +284,22 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
                                                  q[:, None, 1:-1], r[:, None, 1:-1])
         q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
         gated = {"ood_score": float(score[0]), "gate_weight": float(weight[0])}
+    ctx = context_kind(start, end) if m.context_base else "none"
+    if ctx != "none":                # the departure from Slerp / lerp onto the Hermite path through the neighbours
+        from inbetween_jax.models.scvae.gate import slerp_base
+        side = lambda d, k: None if k not in d else np.asarray(d[k], np.float64)[None]  # noqa: E731
+        dq, dr = context_offsets(qs[None], roots[:1], qe[None], roots[1:], frames, m.context_damping,
+                                 side(start, "qp"), side(start, "rp"), side(end, "qn"), side(end, "rn"))
+        mid_q, mid_r = onto_context(q[:, None, 1:-1], r[:, None, 1:-1],
+                                    *slerp_base(qs[None], roots[:1], qe[None], roots[1:], frames), dq, dr)
+        q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
     if trained.bank is not None and sampled_mode(m, num_samples):   # sample s >= 1: the bank's s-th nearest
         mid_q, mid_r = bank_sample_blend(trained.bank, qs[None], roots[:1], qe[None], roots[1:], q[:, None, 1:-1],
-                                         r[:, None, 1:-1], m.bank_sample_weight)
+                                         r[:, None, 1:-1], sample_weight(m, gated.get("gate_weight")))
         q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
     q[:, 0], r[:, 0], q[:, -1], r[:, -1] = qs, roots[0], qe, roots[1]                 # exact keyframes
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    return {"q": quat_fix_sign_np(q, axis=1), "r": r, **gated}
-
-
-def _past_frame(start: dict, yaw, q0) -> dict:
-    """The start keyframe's ``v`` (1, 3) root displacement from the frame before and ``qp`` (1, J, 4) that
-    frame's local quaternions, turned into the canonical space (``yaw``: canonical -> world root rotation) and
-    sign-aligned to the canonical start keyframe ``q0`` (J, 4), as consecutive training frames are."""
-    from inbetween_jax.data.user_input import check_unit_quats
-    from inbetween_jax.geometry import quat_inv, quat_mul, quat_rotate
-    qp = np.array(check_unit_quats(start["qp"], "start's previous frame q"), np.float64)
-    inv = quat_inv(np.asarray(yaw, np.float64))
-    qp[0] = quat_mul(inv, qp[0])
-    qp = np.where(np.sum(qp * np.asarray(q0, np.float64), -1, keepdims=True) < 0, -qp, qp)
-    v = quat_rotate(inv, np.asarray(start["r"], np.float64) - np.asarray(start["rp"], np.float64))
-    if not np.all(np.isfinite(v)):
-        raise ValueError(f"start's previous frame r: expected 3 finite numbers, got {start['rp']!r}")
-    return {"v": jnp.asarray(v[None], jnp.float32), "qp": jnp.asarray(qp[None], jnp.float32)}
+    return {"q": quat_fix_sign_np(q, axis=1), "r": r, **gated, "context": ctx}
 
 
 def _is_lafan1_skeleton(skel) -> bool:
@@ -353,18 +351,30 @@ def infill(args, run):
         vf = trained.extra.get("contact_velfactor", GENERIC_CONTACT_VELFACTOR)
     start = {"q": sm.local_quats[sf], "r": sm.root_pos[sf], "c": keyframe_contacts(sm, sf, vf)}
     end = {"q": em.local_quats[ef], "r": em.root_pos[ef], "c": keyframe_contacts(em, ef, vf)}
-    past = trained.cfg.model.uses_past_frame and sf >= 1
-    if past:                        # the frame before the start keyframe: the model continues its motion
+    m = trained.cfg.model
+    past = m.uses_past_frame and sf >= 1
+    if (past or m.context_base) and sf >= 1:    # the frame before the start keyframe: its motion is continued
         start.update(qp=sm.local_quats[sf - 1], rp=sm.root_pos[sf - 1])
+    if m.context_base and ef + 1 < em.num_frames:                    # the frame after the end keyframe
+        end.update(qn=em.local_quats[ef + 1], rn=em.root_pos[ef + 1])
+    if past:
         notes.append(f"continuing the motion of the frame before the start keyframe ({sp})")
-    elif trained.cfg.model.uses_past_frame:
+    elif m.uses_past_frame:
         notes.append(f"the start keyframe is the first frame of {sp}: no motion to continue (plain interpolation base)")
     res = infill_between(trained, skel, start, end, args.frames, args.samples, args.seed, fa)
     finite_or_fail(run.run_dir, res["q"], res["r"])
+    if res["context"] != "none":
+        notes.append(f"following the motion beside the keyframes ({res['context']}): Hermite path, not Slerp")
     gated = {k: res[k] for k in ("ood_score", "gate_weight") if k in res}
     if gated:
         from inbetween_jax.models.ood import gate_note
-        notes.append(gate_note(gated["ood_score"], gated["gate_weight"], "Slerp / lerp"))
+        notes.append(gate_note(gated["ood_score"], gated["gate_weight"],
+                               "Slerp / lerp" if res["context"] == "none" else "the Hermite path"))
+        if (trained.bank is not None and sampled_mode(m, args.samples) and m.bank_sample_gated
+                and gated["gate_weight"] < 0.5):
+            w = sample_weight(m, gated["gate_weight"])
+            notes.append(f"the {args.samples} samples stay close to the fill: the keyframes lie outside the captured "
+                         f"motion the samples draw on (sampled-mode weight {w:.2f})")
     t = args.frames + 2
     w = (np.arange(t) / (t - 1))[:, None, None]
     base_pos = (1 - w) * sm.local_pos[sf] + w * em.local_pos[ef]       # joints with position channels: lerp
@@ -383,7 +393,8 @@ def infill(args, run):
     spread = sample_spread([m[0] for _, m, _ in samples])
     return InfillResult(samples=samples, summary={**keyframes, "frames": args.frames,
                                                   "samples": args.samples, "step": trained.step,
-                                                  "past_frame": past, **gated, **spread,
+                                                  "past_frame": past, "context": res["context"], **gated,
+                                                  **spread,
                                                   "samples_ood": [dict(gated, sample=n) for n in
                                                                   sample_names(args.samples)] if gated else []},
                         notes=notes)

@@ -34,13 +34,13 @@ def samples_rows(trained, windows, lengths, n_past: int, x_mean, x_std, name: st
     for n in lengths:
         s = infer.sample_transitions(model_cfg, trained.state, windows, n_past, n, num_samples, seed=seed,
                                      bank=trained.bank, sampled=False)
-        variants = [(f"{name}, no gate" if gated else name, s["q"], s["r"])]
+        variants, weight = [(f"{name}, no gate" if gated else name, s["q"], s["r"])], None
         if gated:
-            q, r, _, _ = gate_windows(trained.gate, windows, n_past - 1, n_past + n, s["q"], s["r"], fa)
+            q, r, _, weight = gate_windows(trained.gate, windows, n_past - 1, n_past + n, s["q"], s["r"], fa)
             variants.append((name, q, r))
         if trained.bank is not None and sampled_mode(model_cfg, num_samples):   # the sampled mode, after the gate
             variants.append((f"{name}, sampled mode", *infer.bank_samples(trained.bank, model_cfg, windows, n_past,
-                                                                          n, *variants[-1][1:])))
+                                                                          n, *variants[-1][1:], weight)))
         rows += length_rows(windows, n_past, n, x_mean, x_std, variants)
     return rows
 

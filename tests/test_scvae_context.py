@@ -1,0 +1,108 @@
+"""The S-CVAE's fill inside a clip (``model.context_base``, :mod:`inbetween_jax.models.scvae.context`): the
+two-sided Hermite offsets (pure math on synthetic curves), and on real CMU motion with the shipped weights: the
+keyframes stay exact, no context changes nothing, the fill leaves and reaches the keyframes with the motion's
+own velocity, and it is closer to the capture than the Slerp-based fill."""
+import dataclasses
+import json
+import os
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from conftest import ROOT
+from inbetween_jax.baselines.velocity_interpolation import end_hermite_weights, hermite_weights, velocity_offsets
+
+ASSETS = os.path.join(ROOT, "inbetween_jax", "assets", "cmu30")
+
+
+def test_end_basis_is_zero_at_both_keyframes_and_has_unit_slope_at_the_end():
+    L = 400
+    g = np.asarray(end_hermite_weights(L, L + 5))
+    f = np.asarray(hermite_weights(L, L + 5))
+    assert g[0] == 0 and abs(g[L]) < 1e-9 and np.all(g[L:] == 0) and np.all(g[1:L] < 0)
+    assert (g[L] - g[L - 1]) == pytest.approx(1.0, abs=3.0 / L)       # arrives with the end tangent
+    assert (g[1] - g[0]) == pytest.approx(0.0, abs=3.0 / L)           # leaves with none of it
+    assert (f[1] - f[0]) == pytest.approx(1.0, abs=3.0 / L) and (f[L] - f[L - 1]) == pytest.approx(0.0, abs=3.0 / L)
+
+
+def test_two_sided_offsets_vanish_on_uniform_motion_and_bend_a_root_path_toward_both_velocities():
+    """Constant velocity on both sides: the Hermite path is the lerp (offsets zero).  A root that arrives
+    moving faster than the secant: the path's last step is larger than the lerp's, its first step unchanged."""
+    B, J, L = 2, 3, 20
+    q = jnp.tile(jnp.asarray([1.0, 0.0, 0.0, 0.0]), (B, J, 1))
+    r0, r1 = jnp.zeros((B, 3)), jnp.tile(jnp.asarray([2.0, 0.0, 0.0]), (B, 1))
+    step = (r1 - r0) / L
+    dq, dr = velocity_offsets(q, q, q, r0 - step, r0, r1, L, L, q_next=q, r_next=r1 + step)
+    np.testing.assert_allclose(np.asarray(dr), 0.0, atol=1e-6)
+    np.testing.assert_allclose(np.abs(np.asarray(dq)[..., 0]), 1.0, atol=1e-6)
+    _, dr = velocity_offsets(q, q, q, r0 - step, r0, r1, L, L, q_next=q, r_next=r1 + 3 * step)
+    path = np.asarray(r0)[:, None] + np.linspace(0, 1, L + 1)[None, :, None] * np.asarray(r1 - r0)[:, None] + dr
+    steps = np.diff(path[..., 0], axis=1)
+    assert steps[0, -1] > 1.5 * float(step[0, 0]) and steps[0, 0] == pytest.approx(float(step[0, 0]), rel=0.2)
+    np.testing.assert_allclose(path[:, [0, L]], np.stack([r0, r1], 1), atol=1e-6)
+
+
+def _shipped_scvae():
+    from inbetween_jax.models.scvae import infer
+    from inbetween_jax.shipped import shipped_run
+    run = shipped_run("scvae")
+    if run is None:
+        pytest.skip("no S-CVAE weights ship in this tree")
+    return run, infer.load(run)
+
+
+def _switch(trained, **kw):
+    return dataclasses.replace(trained, cfg=dataclasses.replace(trained.cfg, model=dataclasses.replace(
+        trained.cfg.model, **kw)))
+
+
+def test_shipped_fill_follows_the_motion_beside_the_keyframes_on_real_cmu_motion():
+    from inbetween_jax.data import read_bvh
+    from inbetween_jax.data.retarget import prepare
+    from inbetween_jax.geometry import forward_kinematics
+    from inbetween_jax.models.scvae import infer
+    run, trained = _shipped_scvae()
+    assert trained.cfg.model.context_base
+    off = _switch(trained, context_base=False)
+    fa = tuple(trained.extra.get("forward_axis") or trained.skeleton.forward_axis())
+    path = os.path.join(ASSETS, "13_10.bvh")                     # a test subject: everyday motion, never trained on
+    m = prepare(read_bvh(path), path, trained.skeleton, run.fps).motion
+    lp = lambda r: np.concatenate([r[..., None, :], np.broadcast_to(m.local_pos[0, 1:], r.shape[:-1] + (  # noqa
+        m.skeleton.num_joints - 1, 3))], -2)
+    gp = forward_kinematics(m.local_quats, lp(m.root_pos), m.skeleton.parents)[1]
+    n, errs = 20, {"context": [], "slerp": []}
+    for k0 in range(5, m.num_frames - n - 3, 60):
+        k1 = k0 + n + 1
+        s = {"q": m.local_quats[k0], "r": m.root_pos[k0], "c": np.zeros(4)}
+        e = {"q": m.local_quats[k1], "r": m.root_pos[k1], "c": np.zeros(4)}
+        plain = infer.infill_between(off, m.skeleton, s, e, n, 1, 0, fa)
+        bare = infer.infill_between(trained, m.skeleton, s, e, n, 1, 0, fa)   # no neighbours given: unchanged
+        assert bare["context"] == "none" and plain["context"] == "none"
+        np.testing.assert_allclose(bare["q"], plain["q"], atol=1e-6)
+        s.update(qp=m.local_quats[k0 - 1], rp=m.root_pos[k0 - 1])
+        e.update(qn=m.local_quats[k1 + 1], rn=m.root_pos[k1 + 1])
+        out = infer.infill_between(trained, m.skeleton, s, e, n, 1, 0, fa)
+        assert out["context"] == "both sides"
+        np.testing.assert_allclose(out["q"][0, [0, -1]], m.local_quats[[k0, k1]], atol=1e-6)
+        np.testing.assert_allclose(out["r"][0, [0, -1]], m.root_pos[[k0, k1]], atol=1e-6)
+        if out["gate_weight"] == 0.0:        # the gate closed: the root follows the Hermite path, leaving at the
+            v_in, v_out = m.root_pos[k0] - m.root_pos[k0 - 1], out["r"][0, 1] - out["r"][0, 0]   # motion's speed
+            secant = (m.root_pos[k1] - m.root_pos[k0]) / (n + 1)
+            assert np.linalg.norm(v_out - v_in) < np.linalg.norm(v_in - secant) + 1e-9
+        for key, res in (("context", out), ("slerp", plain)):
+            fill = forward_kinematics(res["q"][0, 1:-1], lp(res["r"][0, 1:-1]), m.skeleton.parents)[1]
+            errs[key].append(np.linalg.norm(fill - gp[k0 + 1:k1], axis=-1).mean())
+    assert len(errs["context"]) >= 4
+    assert np.mean(errs["context"]) < 0.95 * np.mean(errs["slerp"])
+
+
+def test_infill_json_says_which_neighbours_the_fill_followed(tmp_path):
+    from inbetween_jax.cli import main
+    _shipped_scvae()
+    bvh = os.path.join(ASSETS, "13_10.bvh")
+    for start, end, kind in ((40, 70, "both sides"), (0, 30, "after the end")):
+        out = tmp_path / kind.replace(" ", "_")
+        assert main(["infill", "--model", "scvae", "--start", f"{bvh}:{start}", "--end", f"{bvh}:{end}", "--frames",
+                     str(end - start - 1), "--out", str(out)]) == 0
+        assert json.load(open(out / "infill.json"))["context"] == kind
