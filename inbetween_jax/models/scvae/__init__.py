@@ -17,6 +17,7 @@ Files::
     deferred_grads.py  training-only speed-up: the largest weight gradients as one matmul after the scan
     train.py           load_data, make_training (init / step / batch functions, run metadata)
     infer.py           load(run), sample_transitions on windows, infill(args, run) on users' keyframes
+    context.py         inference inside a clip: the fill onto the Hermite path through the neighbouring frames
     bench.py           the model's rows of the Table 1 layout beside Slerp, error-over-time plot
 """
 
