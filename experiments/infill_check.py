@@ -24,6 +24,7 @@ from inbetween_jax.geometry import forward_kinematics
 from inbetween_jax.metrics.steps import lift_offs
 from inbetween_jax.models.cae.infer import load as load_cae, process_motion
 from inbetween_jax.models.scvae import infer as scvae
+from inbetween_jax.models.scvae.context import AFTER, BEFORE
 from inbetween_jax.models.scvae.gate import slerp_base
 from inbetween_jax.shipped import shipped_run
 
@@ -56,10 +57,11 @@ for path in a.files:
     for n in [int(x) for x in a.scvae_frames.split(",")]:
         for k0 in range(3, m.num_frames - n - 2, a.stride):   # frames 0-1: often capture start-up
             k1 = k0 + n + 1
-            s = {"q": m.local_quats[k0], "r": m.root_pos[k0], "c": np.zeros(4), "qp": m.local_quats[k0 - 1],
-                 "rp": m.root_pos[k0 - 1]}                    # the frames beside the keyframes, as infill passes them
-            e = {"q": m.local_quats[k1], "r": m.root_pos[k1], "c": np.zeros(4), "qn": m.local_quats[k1 + 1],
-                 "rn": m.root_pos[k1 + 1]}
+            s = {"q": m.local_quats[k0], "r": m.root_pos[k0], "c": np.zeros(4)}
+            e = {"q": m.local_quats[k1], "r": m.root_pos[k1], "c": np.zeros(4)}
+            for d, ks, fr in ((s, BEFORE, (k0 - 1, k0 - 2)), (e, AFTER, (k1 + 1, k1 + 2))):
+                if 0 <= min(fr) and max(fr) < m.num_frames:     # the frames beside the keyframes, as infill passes them
+                    d.update(zip(ks, (m.local_quats[fr[0]], m.root_pos[fr[0]], m.local_quats[fr[1]], m.root_pos[fr[1]])))
             out = scvae.infill_between(sm, m.skeleton, s, e, n, a.samples, 0, fa)
             bq, br = slerp_base(m.local_quats[k0][None], m.root_pos[k0][None], m.local_quats[k1][None],
                                 m.root_pos[k1][None], n)

@@ -2,7 +2,8 @@
 Hermite path through them (``model.context_base``, :mod:`inbetween_jax.models.scvae.context`) instead of Slerp,
 and with which damping (``model.context_damping``)?
 
-Gaps every ``--stride`` frames (from frame 3: CMU files often begin with capture start-up frames) in the ``cmu``
+Gaps every ``--stride`` frames (from frame ``--first``, default 3: CMU files often begin with capture start-up
+frames; the run's caps on the neighbours' velocity apply unless ``--no-cap``) in the ``cmu``
 source's validation subjects (``--split val-subjects``, the default: choose here) or the test subjects (``--split
 test``, the embedded 13 / 14 files: look once, at the end), read as training reads them (the 21-joint body, 30
 fps).  Per gap, one sample (the deterministic fill) through :func:`~inbetween_jax.models.scvae.infer.infill_between`
@@ -27,6 +28,7 @@ of sample 0's (the deterministic fill) in every (activity group, length).
 """
 import argparse
 import dataclasses
+import os
 
 import numpy as np
 
@@ -36,7 +38,7 @@ from inbetween_jax.data.sources import cmu_train_plan, read_cmu_train, val_files
 from inbetween_jax.evaluation.worst_case import summarise
 from inbetween_jax.geometry import forward_kinematics, quat_mul
 from inbetween_jax.models.scvae import infer as scvae
-from inbetween_jax.models.scvae.context import context_offsets
+from inbetween_jax.models.scvae.context import AFTER, BEFORE, context_offsets, neighbours
 from inbetween_jax.models.scvae.gate import slerp_base
 from inbetween_jax.shipped import shipped_run
 from inbetween_jax.train.run import load_run
@@ -48,9 +50,14 @@ p.add_argument("--frames", default="10,30,50")
 p.add_argument("--damping", default="0,0.05,0.1,0.15,0.2")
 p.add_argument("--stride", type=int, default=45)
 p.add_argument("--sample-weights", default=None, help="score the sampled mode at these model.bank_sample_weight")
+p.add_argument("--first", type=int, default=3, help="first start keyframe of a file (1: from its second frame)")
+p.add_argument("--no-cap", action="store_true", help="model.context_max_turn = context_max_step = 0")
 a = p.parse_args()
 run = load_run(a.run) if a.run else shipped_run("scvae")
 trained = scvae.load(run)
+if a.no_cap:
+    trained = dataclasses.replace(trained, cfg=dataclasses.replace(trained.cfg, model=dataclasses.replace(
+        trained.cfg.model, context_max_turn=0.0, context_max_step=0.0)))
 dampings = [float(x) for x in a.damping.split(",")]
 
 
@@ -84,19 +91,23 @@ for path, m in zip(files, motions):
     gp = fk(m, m.local_quats, m.root_pos)
     group = activity_group(path)
     for n in [int(x) for x in a.frames.split(",")]:
-        for k0 in range(3, m.num_frames - n - 2, a.stride):
+        for k0 in range(a.first, m.num_frames - n - 2, a.stride):
             k1 = k0 + n + 1
             err = lambda q, r: np.linalg.norm(fk(m, q, r) - gp[k0 + 1:k1], axis=-1).mean()  # noqa: E731
-            s = {"q": m.local_quats[k0], "r": m.root_pos[k0], "c": np.zeros(4), "qp": m.local_quats[k0 - 1],
-                 "rp": m.root_pos[k0 - 1]}
-            e = {"q": m.local_quats[k1], "r": m.root_pos[k1], "c": np.zeros(4), "qn": m.local_quats[k1 + 1],
-                 "rn": m.root_pos[k1 + 1]}
+            s = {"q": m.local_quats[k0], "r": m.root_pos[k0], "c": np.zeros(4)}
+            e = {"q": m.local_quats[k1], "r": m.root_pos[k1], "c": np.zeros(4)}
+            for d, ks, frames in ((s, BEFORE, (k0 - 1, k0 - 2)), (e, AFTER, (k1 + 1, k1 + 2))):
+                if 0 <= min(frames) and max(frames) < m.num_frames:      # as inbetween infill passes them
+                    d.update(zip(ks, (m.local_quats[frames[0]], m.root_pos[frames[0]], m.local_quats[frames[1]],
+                                      m.root_pos[frames[1]])))
             keys = [x[k][None] for x, k in ((m.local_quats, k0), (m.root_pos, k0), (m.local_quats, k1),
                                             (m.root_pos, k1))]
             sq, sr = slerp_base(*keys, n)
             res = {}
             for d in dampings:
-                dq, dr = context_offsets(*keys, n, d, *(x[None] for x in (s["qp"], s["rp"], e["qn"], e["rn"])))
+                side = lambda d, ks: tuple(d[k][None] for k in ks) if all(k in d for k in ks) else None  # noqa
+                nb = neighbours(trained.cfg.model, m.skeleton, *keys, side(s, BEFORE), side(e, AFTER))
+                dq, dr = context_offsets(*keys, n, d, *nb)
                 res[f"hermite d{d:g}"] = err(quat_mul(sq[0], dq[0]), sr[0] + dr[0])
             for name, t in variants.items():
                 out = scvae.infill_between(t, m.skeleton, s, e, n, num_samples, 0, fa)
@@ -107,7 +118,8 @@ for path, m in zip(files, motions):
                     i, j = np.triu_indices(num_samples, 1)
                     res.update({f"{name} sample 0": each[0], f"{name} best": min(each),
                                 f"{name} apart": np.linalg.norm(pos[i] - pos[j], axis=-1).mean()})
-            rows.append((group, n, {k: v / err(sq[0], sr[0]) for k, v in res.items()}, err(sq[0], sr[0])))
+            rows.append((group, n, {k: v / err(sq[0], sr[0]) for k, v in res.items()}, err(sq[0], sr[0]),
+                         f"{os.path.basename(path)}:{k0}"))
 
 if a.sample_weights:
     print(f"{a.split}: {len(rows)} gaps; sampled mode inside a clip, 10 samples; errors over Slerp's")
@@ -146,6 +158,8 @@ for g in groups:
     print(f"  {g[0]:8s} {g[1]:3d} ({len(sel):3d}): " + " | ".join(
         f"{k} {np.mean([x[k] for x in sel]):.3f} ({summarise([x[k] for x in sel])['p90']:.2f}, "
         f"{max(x[k] for x in sel):.2f})" for k in names if k.startswith("fill")))
+worst = sorted(rows, key=lambda r: -r[2][names[-1]])[:6]
+print(f"\nworst gaps of {names[-1]}: " + ", ".join(f"{r[4]} ({r[1]} frames) {r[2][names[-1]]:.2f}" for r in worst))
 best = min((k for k in names if k.startswith("fill") and ok[k]), default=None,
            key=lambda k: summarise([r[2][k] for r in rows])["mean"])
 print(f"\nchosen by the rule: {best}")

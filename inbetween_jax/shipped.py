@@ -33,7 +33,8 @@ INFERENCE_SWITCHES = {"interaction": ("model.refiner", "model.latent_scale", "mo
                                       "model.ood_gate", "model.bank_sample_weight"),
                       "scvae": ("model.search", "model.bank_k", "model.bank_weight", "model.bank_tau", "model.ood_gate",
                                 "model.motion_temperature", "model.motion_spread", "model.bank_sample_weight",
-                                "model.bank_sample_gated", "model.context_base", "model.context_damping"),
+                                "model.bank_sample_gated", "model.context_base", "model.context_damping",
+                                "model.context_max_turn", "model.context_max_step"),
                       "cae": ("model.mirror_average", "model.ood_gate", "model.root_bound")}
 # Per model: the key-path prefixes of the train state that ``infer.load`` / inference use.
 KEEP = {"scvae": ("params", "stats"),                # generators + normalisation (disc, opt_g, opt_d dropped)

@@ -80,8 +80,8 @@ def test_shipped_fill_follows_the_motion_beside_the_keyframes_on_real_cmu_motion
         bare = infer.infill_between(trained, m.skeleton, s, e, n, 1, 0, fa)   # no neighbours given: unchanged
         assert bare["context"] == "none" and plain["context"] == "none"
         np.testing.assert_allclose(bare["q"], plain["q"], atol=1e-6)
-        s.update(qp=m.local_quats[k0 - 1], rp=m.root_pos[k0 - 1])
-        e.update(qn=m.local_quats[k1 + 1], rn=m.root_pos[k1 + 1])
+        s.update(qp=m.local_quats[k0 - 1], rp=m.root_pos[k0 - 1], qp2=m.local_quats[k0 - 2], rp2=m.root_pos[k0 - 2])
+        e.update(qn=m.local_quats[k1 + 1], rn=m.root_pos[k1 + 1], qn2=m.local_quats[k1 + 2], rn2=m.root_pos[k1 + 2])
         out = infer.infill_between(trained, m.skeleton, s, e, n, 1, 0, fa)
         assert out["context"] == "both sides"
         np.testing.assert_allclose(out["q"][0, [0, -1]], m.local_quats[[k0, k1]], atol=1e-6)
@@ -106,3 +106,41 @@ def test_infill_json_says_which_neighbours_the_fill_followed(tmp_path):
         assert main(["infill", "--model", "scvae", "--start", f"{bvh}:{start}", "--end", f"{bvh}:{end}", "--frames",
                      str(end - start - 1), "--out", str(out)]) == 0
         assert json.load(open(out / "infill.json"))["context"] == kind
+
+
+def test_neighbour_velocity_is_capped_and_small_motion_kept():
+    from inbetween_jax.geometry import quat_conj, quat_from_axis_angle, quat_mul, quat_to_axis_angle
+    from inbetween_jax.models.scvae.context import limit_neighbour
+    axis = np.array([[0.0, 0.6, 0.8], [1.0, 0.0, 0.0]])
+    key = quat_from_axis_angle(np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0]]), np.array([0.3, -1.0]))[None]
+    nb = quat_mul(key, quat_from_axis_angle(axis, np.array([1.4, 0.1]))[None])      # a glitch, then real motion
+    r_key, r_nb = np.zeros((1, 3)), np.array([[30.0, 0.0, 40.0]])
+    q, r = limit_neighbour(key, r_key, nb, r_nb, 0.35, 10.0)
+    ax, ang = quat_to_axis_angle(quat_mul(quat_conj(key), q))
+    np.testing.assert_allclose(ang[0], [0.35, 0.1], atol=1e-9)
+    np.testing.assert_allclose(ax[0], axis, atol=1e-9)
+    np.testing.assert_allclose(r, [[6.0, 0.0, 8.0]], atol=1e-9)                    # 50 units -> 10, same direction
+    q0, r0 = limit_neighbour(key, r_key, nb, r_nb, 0.0, 0.0)                         # 0: no cap
+    np.testing.assert_allclose(np.abs(np.sum(q0 * nb, -1)), 1.0, atol=1e-12)
+    np.testing.assert_allclose(r0, r_nb)
+    # two frames on the side: per joint the smaller of the one-frame step and half the two-frame step, so a
+    # glitched nearest frame (joint 0) is outvoted by the frame beyond it and real motion (joint 1) is kept
+    nb2 = quat_mul(key, quat_from_axis_angle(axis, np.array([0.1, 0.2]))[None])
+    q2, r2 = limit_neighbour(key, r_key, nb, r_nb, 0.0, 0.0, nb2, np.array([[2.0, 0.0, 0.0]]))
+    ax, ang = quat_to_axis_angle(quat_mul(quat_conj(key), q2))
+    np.testing.assert_allclose(ang[0], [0.05, 0.1], atol=1e-9)
+    np.testing.assert_allclose(r2, [[1.0, 0.0, 0.0]], atol=1e-12)
+
+
+def test_a_side_needs_two_frames_and_the_bench_windows_give_them():
+    from inbetween_jax.models.scvae.config import ModelConfig
+    from inbetween_jax.models.scvae.context import context_kind, neighbours
+    from inbetween_jax.data import load_dataset
+    wins = load_dataset("embedded", "benchmark").take(slice(0, 2))
+    q, r = wins.local_quats, wins.root_pos
+    k0, k1 = 9, 40
+    keys = (q[:, k0], r[:, k0], q[:, k1], r[:, k1])
+    nb = neighbours(ModelConfig(), wins.skeleton, *keys, (q[:, k0 - 1], r[:, k0 - 1], q[:, k0 - 2], r[:, k0 - 2]),
+                    (q[:, k1 + 1], r[:, k1 + 1], None, None))
+    assert nb[0] is not None and nb[2] is None and nb[3] is None
+    assert context_kind({"qp": 0, "rp": 0, "qp2": 0, "rp2": 0}, {"qn": 0, "rn": 0}) == "before the start"

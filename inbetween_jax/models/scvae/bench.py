@@ -100,7 +100,7 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
         sample_table += length_rows(bench, N_PAST, length, x_mean, x_std, variants)
         per_window += window_ratios(bench, N_PAST, length, s["q"], s["r"])
         if model_cfg.context_base:     # inside a clip: onto the Hermite path through the frames beside the keyframes
-            cq, cr, hq, hr = in_clip(bench, N_PAST, length, s["q"], s["r"], model_cfg.context_damping)
+            cq, cr, hq, hr = in_clip(bench, N_PAST, length, s["q"], s["r"], model_cfg)
             rows += [{"method": name, "frames": length, "MMPE": None,
                       **transition_metrics(bench, N_PAST, length, q_, r_, x_mean, x_std)}
                      for name, q_, r_ in ((HERMITE_NAME, hq, hr), (IN_CLIP_NAME, cq, cr))]

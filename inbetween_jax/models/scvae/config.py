@@ -56,8 +56,10 @@ transition (:func:`~inbetween_jax.models.scvae.bank.sample_blend`), so the sampl
 ``model.context_base`` (inference only, off in every preset, on in the shipped CMU weights): where the frames
 beside the keyframes are known (``inbetween infill`` inside a file), the fill's departure from Slerp / lerp is
 added onto the two-sided Hermite path that continues the motion on both sides
-(:mod:`inbetween_jax.models.scvae.context`, damped by ``model.context_damping``), not onto Slerp.  The Table-1
-protocol (two keyframes) is unchanged.
+(:mod:`inbetween_jax.models.scvae.context`, damped by ``model.context_damping``), not onto Slerp; the velocity
+it continues is capped (``model.context_max_turn`` radians per joint and ``model.context_max_step`` leg lengths
+of root travel per frame), so a capture's start-up frame or a glitch beside a keyframe cannot throw it off.  The
+Table-1 protocol (two keyframes) is unchanged.
 
 ``data.mirror`` (off in every preset) adds every training window's left-right mirror image
 (:meth:`~inbetween_jax.data.windows.MotionWindows.mirrored`): twice the windows, a body's motion again.
@@ -131,6 +133,8 @@ class ModelConfig:
     ood_gate: bool = False         # inference: blend toward Slerp / lerp as the keyframes leave the training motion
     context_base: bool = False     # inference: frames beside the keyframes known -> onto the Hermite path (.context)
     context_damping: float = 0.1   # ... its velocity terms faded by exp(-context_damping * t) (per frame)
+    context_max_turn: float = 0.35  # ... the neighbours' joint turn capped at this many radians per frame (0: no cap)
+    context_max_step: float = 0.35  # ... and their root step at this many leg lengths per frame (0: no cap)
     motion_latent: int = 0         # > 0: a per-transition latent of this size, posterior sees the gap (.motion_latent)
     motion_hidden: int = 128       # its posterior / prior MLP width
     motion_spread: int = 1         # sampling: > 1 picks the N motion draws far apart among this x N prior draws

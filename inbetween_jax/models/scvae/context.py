@@ -19,7 +19,8 @@ import numpy as np
 from inbetween_jax.baselines.velocity_interpolation import velocity_offsets
 from inbetween_jax.geometry import quat_conj, quat_mul, quat_normalize
 
-__all__ = ["context_offsets", "onto_context", "context_kind", "in_clip", "HERMITE_NAME", "IN_CLIP_NAME"]
+__all__ = ["context_offsets", "limit_neighbour", "neighbours", "onto_context", "context_kind", "in_clip", "BEFORE",
+           "AFTER", "HERMITE_NAME", "IN_CLIP_NAME"]
 
 HERMITE_NAME = "Hermite through the frames beside the keyframes"      # bench rows (models/scvae/bench.py)
 IN_CLIP_NAME = "S-CVAE inside a clip (onto that Hermite path)"
@@ -28,6 +29,53 @@ IN_CLIP_NAME = "S-CVAE inside a clip (onto that Hermite path)"
 def _aligned(q, ref):
     q = np.asarray(q, np.float64)
     return np.where(np.sum(q * ref, -1, keepdims=True) < 0, -q, q)
+
+
+def limit_neighbour(q_key, r_key, q_nb, r_nb, max_turn: float, max_step: float, q_nb2=None, r_nb2=None):
+    """The velocity the Hermite path continues on one side of a keyframe, made robust: returned as an effective
+    neighbouring frame (q (B, J, 4), r (B, 3), float64) one step from the keyframe (q_key, r_key).
+
+    Per joint the step is the smaller turn of the one-frame step to the neighbour (q_nb, r_nb) and half the
+    two-frame step to the next one (q_nb2, r_nb2, optional), so a single glitched frame on that side does not
+    count; then no joint turns more than ``max_turn`` radians and the root moves at most ``max_step`` (file
+    units; 0: no cap)."""
+    from inbetween_jax.geometry import quat_from_axis_angle, quat_to_axis_angle
+    q_key, r_key = np.asarray(q_key, np.float64), np.asarray(r_key, np.float64)
+
+    def turn(q, scale):               # rotation vector from the keyframe to q, times scale
+        axis, angle = quat_to_axis_angle(quat_mul(quat_conj(q_key), _aligned(q, q_key)))
+        return axis * (scale * angle)[..., None]
+
+    w, d = turn(q_nb, 1.0), np.asarray(r_nb, np.float64) - r_key
+    if q_nb2 is not None:
+        w2, d2 = turn(q_nb2, 0.5), 0.5 * (np.asarray(r_nb2, np.float64) - r_key)
+        w = np.where(np.linalg.norm(w2, axis=-1, keepdims=True) < np.linalg.norm(w, axis=-1, keepdims=True), w2, w)
+        d = np.where(np.linalg.norm(d2, axis=-1, keepdims=True) < np.linalg.norm(d, axis=-1, keepdims=True), d2, d)
+    angle = np.linalg.norm(w, axis=-1)
+    if max_turn > 0:
+        w = w * (np.minimum(angle, max_turn) / np.maximum(angle, 1e-12))[..., None]
+        angle = np.minimum(angle, max_turn)
+    if max_step > 0:
+        d = d * np.minimum(1.0, max_step / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-12))
+    q = quat_normalize(quat_mul(q_key, quat_from_axis_angle(w / np.maximum(angle, 1e-12)[..., None], angle)))
+    return q, r_key + d
+
+
+def neighbours(cfg, skeleton, q0, r0, q1, r1, before=None, after=None) -> tuple:
+    """``(qp, rp, qn, rn)`` for :func:`context_offsets`: the frame before the start keyframe and the frame after
+    the end keyframe as :func:`limit_neighbour` makes them, from ``before`` = (qp, rp, qp2, rp2) (the two frames
+    before the start, nearest first) and ``after`` = (qn, rn, qn2, rn2); a side without both frames is not used
+    (None).  Caps: ``cfg.context_max_turn`` radians and ``cfg.context_max_step`` leg lengths of ``skeleton`` per
+    frame (cfg: ModelConfig)."""
+    from inbetween_jax.data.features import leg_length
+    step = cfg.context_max_step * leg_length(skeleton)
+    out = []
+    for key_q, key_r, side in ((q0, r0, before), (q1, r1, after)):
+        if side is None or any(x is None for x in side):
+            out += [None, None]
+        else:
+            out += list(limit_neighbour(key_q, key_r, side[0], side[1], cfg.context_max_turn, step, side[2], side[3]))
+    return tuple(out)
 
 
 def context_offsets(q0, r0, q1, r1, n_frames: int, damping: float, qp=None, rp=None, qn=None, rn=None):
@@ -58,25 +106,31 @@ def onto_context(q, r, slerp_q, slerp_r, dq, dr):
     return out, r + np.asarray(dr, np.float64)[None]
 
 
+BEFORE, AFTER = ("qp", "rp", "qp2", "rp2"), ("qn", "rn", "qn2", "rn2")   # the keys infill_between reads
+
+
 def context_kind(start: dict, end: dict) -> str:
-    """Which frames beside the keyframes a fill continues: "both sides", "before the start", "after the end" or
-    "none" (``start`` may carry ``qp`` / ``rp``, ``end`` ``qn`` / ``rn``)."""
-    before, after = "qp" in start and "rp" in start, "qn" in end and "rn" in end
+    """Which sides of the gap a fill continues the motion of: "both sides", "before the start", "after the end"
+    or "none" (a side needs two frames: ``start`` carrying :data:`BEFORE`, ``end`` :data:`AFTER`)."""
+    before, after = all(k in start for k in BEFORE), all(k in end for k in AFTER)
     return {(True, True): "both sides", (True, False): "before the start", (False, True): "after the end",
             (False, False): "none"}[(before, after)]
 
 
-def in_clip(windows, n_past: int, n_trans: int, q, r, damping: float):
+def in_clip(windows, n_past: int, n_trans: int, q, r, cfg):
     """The bench's in-clip rows: samples q (S, B, L, J, 4), r (S, B, L, 3) of the transitions after frame
-    ``n_past - 1`` of B windows (needs ``n_past >= 2``) moved onto the Hermite path through frame ``n_past - 2``
-    and frame ``n_past + n_trans + 1`` (where the windows hold it).  Returns (q, r, hermite_q (1, B, L, J, 4),
-    hermite_r (1, B, L, 3)), float64: the moved samples and the Hermite path alone."""
+    ``n_past - 1`` of B windows moved onto the Hermite path through the frames before the start and after the end
+    keyframe (two on each side, where the windows hold them).  Returns (q, r, hermite_q (1, B, L, J, 4),
+    hermite_r (1, B, L, 3)), float64: the moved samples and the Hermite path alone (cfg: ModelConfig, its
+    ``context_*`` switches)."""
     from inbetween_jax.models.scvae.gate import slerp_base
     lq, rp = np.asarray(windows.local_quats, np.float64), np.asarray(windows.root_pos, np.float64)
     k0, k1 = n_past - 1, n_past + n_trans
-    after = k1 + 1 < lq.shape[1]
     sq, sr = slerp_base(lq[:, k0], rp[:, k0], lq[:, k1], rp[:, k1], n_trans)
-    dq, dr = context_offsets(lq[:, k0], rp[:, k0], lq[:, k1], rp[:, k1], n_trans, damping, lq[:, k0 - 1],
-                             rp[:, k0 - 1], lq[:, k1 + 1] if after else None, rp[:, k1 + 1] if after else None)
+    keys = (lq[:, k0], rp[:, k0], lq[:, k1], rp[:, k1])
+    before = (lq[:, k0 - 1], rp[:, k0 - 1], lq[:, k0 - 2], rp[:, k0 - 2]) if k0 >= 2 else None
+    after = (lq[:, k1 + 1], rp[:, k1 + 1], lq[:, k1 + 2], rp[:, k1 + 2]) if k1 + 2 < lq.shape[1] else None
+    nb = neighbours(cfg, windows.skeleton, *keys, before, after)
+    dq, dr = context_offsets(*keys, n_trans, cfg.context_damping, *nb)
     mq, mr = onto_context(q, r, sq, sr, dq, dr)
     return mq, mr, quat_normalize(quat_mul(sq, dq))[None], (sr + dr)[None]

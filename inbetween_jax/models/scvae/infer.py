@@ -23,7 +23,7 @@ from inbetween_jax.models.scvae import model as M
 from inbetween_jax.models.scvae.bank import (BANK_FILE, TransitionBank, bank_enabled, bank_needed, bank_sample_blend,
                                              bank_searched, blend, knn_base_path, knn_transition, pad_base_path,
                                              sampled_mode)
-from inbetween_jax.models.scvae.context import context_kind, context_offsets, onto_context
+from inbetween_jax.models.scvae.context import AFTER, BEFORE, context_kind, context_offsets, neighbours, onto_context
 from inbetween_jax.models.scvae.features import keyframe_contacts, past_frame_inputs
 from inbetween_jax.models.scvae.losses import fk_positions
 
@@ -226,8 +226,9 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
 
     start / end: dicts with ``q`` (J, 4) unit local quaternions, ``r`` (3,) root position, ``c`` (4,) foot
     contacts; ``start`` may also carry the frame before it, ``qp`` (J, 4) and ``rp`` (3,), which models trained
-    with the past frame (``ModelConfig.uses_past_frame``) continue, and ``end`` the frame after it, ``qn`` and
-    ``rn``: with ``model.context_base`` the fill follows the Hermite path through them (:mod:`.context`).
+    with the past frame (``ModelConfig.uses_past_frame``) continue; with ``model.context_base`` the fill follows
+    the Hermite path through the motion on each side that carries two frames (``start``: ``qp``, ``rp``, ``qp2``,
+    ``rp2``, the frames before it, nearest first; ``end``: ``qn``, ``rn``, ``qn2``, ``rn2``; :mod:`.context`).
     skeleton: the keyframes' skeleton (its offsets give the FK of the canonicalisation).
     forward_axis: the root's local facing axis (default: inferred from ``skeleton``).
     Returns ``q`` (S, frames + 2, J, 4) and ``r`` (S, frames + 2, 3) float64 in the keyframes' world space;
@@ -287,9 +288,10 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
     ctx = context_kind(start, end) if m.context_base else "none"
     if ctx != "none":                # the departure from Slerp / lerp onto the Hermite path through the neighbours
         from inbetween_jax.models.scvae.gate import slerp_base
-        side = lambda d, k: None if k not in d else np.asarray(d[k], np.float64)[None]  # noqa: E731
-        dq, dr = context_offsets(qs[None], roots[:1], qe[None], roots[1:], frames, m.context_damping,
-                                 side(start, "qp"), side(start, "rp"), side(end, "qn"), side(end, "rn"))
+        side = lambda d, ks: tuple(np.asarray(d[k], np.float64)[None] for k in ks) if all(  # noqa: E731
+            k in d for k in ks) else None
+        nb = neighbours(m, skeleton, qs[None], roots[:1], qe[None], roots[1:], side(start, BEFORE), side(end, AFTER))
+        dq, dr = context_offsets(qs[None], roots[:1], qe[None], roots[1:], frames, m.context_damping, *nb)
         mid_q, mid_r = onto_context(q[:, None, 1:-1], r[:, None, 1:-1],
                                     *slerp_base(qs[None], roots[:1], qe[None], roots[1:], frames), dq, dr)
         q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
@@ -353,23 +355,27 @@ def infill(args, run):
     end = {"q": em.local_quats[ef], "r": em.root_pos[ef], "c": keyframe_contacts(em, ef, vf)}
     m = trained.cfg.model
     past = m.uses_past_frame and sf >= 1
-    if (past or m.context_base) and sf >= 1:    # the frame before the start keyframe: its motion is continued
+    if past or (m.context_base and sf >= 2):        # the frames before the start keyframe: its motion continued
         start.update(qp=sm.local_quats[sf - 1], rp=sm.root_pos[sf - 1])
-    if m.context_base and ef + 1 < em.num_frames:                    # the frame after the end keyframe
-        end.update(qn=em.local_quats[ef + 1], rn=em.root_pos[ef + 1])
+        if sf >= 2:
+            start.update(qp2=sm.local_quats[sf - 2], rp2=sm.root_pos[sf - 2])
+    if m.context_base and ef + 2 < em.num_frames:                    # the two frames after the end keyframe
+        end.update(qn=em.local_quats[ef + 1], rn=em.root_pos[ef + 1], qn2=em.local_quats[ef + 2],
+                   rn2=em.root_pos[ef + 2])
     if past:
         notes.append(f"continuing the motion of the frame before the start keyframe ({sp})")
     elif m.uses_past_frame:
         notes.append(f"the start keyframe is the first frame of {sp}: no motion to continue (plain interpolation base)")
     res = infill_between(trained, skel, start, end, args.frames, args.samples, args.seed, fa)
     finite_or_fail(run.run_dir, res["q"], res["r"])
-    if res["context"] != "none":
-        notes.append(f"following the motion beside the keyframes ({res['context']}): Hermite path, not Slerp")
+    context = res.get("context", "none")
+    if context != "none":
+        notes.append(f"following the motion beside the keyframes ({context}): Hermite path, not Slerp")
     gated = {k: res[k] for k in ("ood_score", "gate_weight") if k in res}
     if gated:
         from inbetween_jax.models.ood import gate_note
         notes.append(gate_note(gated["ood_score"], gated["gate_weight"],
-                               "Slerp / lerp" if res["context"] == "none" else "the Hermite path"))
+                               "Slerp / lerp" if context == "none" else "the Hermite path"))
         if (trained.bank is not None and sampled_mode(m, args.samples) and m.bank_sample_gated
                 and gated["gate_weight"] < 0.5):
             w = sample_weight(m, gated["gate_weight"])
@@ -393,7 +399,7 @@ def infill(args, run):
     spread = sample_spread([m[0] for _, m, _ in samples])
     return InfillResult(samples=samples, summary={**keyframes, "frames": args.frames,
                                                   "samples": args.samples, "step": trained.step,
-                                                  "past_frame": past, "context": res["context"], **gated,
+                                                  "past_frame": past, "context": context, **gated,
                                                   **spread,
                                                   "samples_ood": [dict(gated, sample=n) for n in
                                                                   sample_names(args.samples)] if gated else []},
