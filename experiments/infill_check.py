@@ -61,7 +61,8 @@ for path in a.files:
             e = {"q": m.local_quats[k1], "r": m.root_pos[k1], "c": np.zeros(4)}
             for d, ks, fr in ((s, BEFORE, (k0 - 1, k0 - 2)), (e, AFTER, (k1 + 1, k1 + 2))):
                 if 0 <= min(fr) and max(fr) < m.num_frames:     # the frames beside the keyframes, as infill passes them
-                    d.update(zip(ks, (m.local_quats[fr[0]], m.root_pos[fr[0]], m.local_quats[fr[1]], m.root_pos[fr[1]])))
+                    d.update(zip(ks, (m.local_quats[fr[0]], m.root_pos[fr[0]], m.local_quats[fr[1]],
+                                      m.root_pos[fr[1]])))
             out = scvae.infill_between(sm, m.skeleton, s, e, n, a.samples, 0, fa)
             bq, br = slerp_base(m.local_quats[k0][None], m.root_pos[k0][None], m.local_quats[k1][None],
                                 m.root_pos[k1][None], n)

@@ -48,9 +48,12 @@ def rate(fn, nbytes, reps=15):
                                for _ in range(reps)])
 
 
-big = np.ones(256 * 1024 * 1024, np.float32)                                # 1 GiB
-read_bw = rate(lambda: big.sum(), big.nbytes)
-del big
+def read_rate():
+    big = np.ones(256 * 1024 * 1024, np.float32)                            # 1 GiB
+    return rate(lambda: big.sum(), big.nbytes)
+
+
+read_bw = read_rate()
 w = jnp.ones((4096, 6144), jnp.float32)
 x = jnp.ones((10, 4096), jnp.float32)
 mm = jax.jit(lambda x_, w_: x_ @ w_)

@@ -31,8 +31,8 @@ from inbetween_jax.geometry.quaternion import quat_from_axis_angle, quat_inv, qu
 from inbetween_jax.geometry.quaternion import quat_fix_sign_np, quat_slerp
 
 __all__ = ["BANK_FILE", "SWITCHES", "MIRROR_TAG", "TransitionBank", "keyframe_space", "knn_transition",
-           "knn_base_path", "pad_base_path", "blend", "sample_blend", "bank_sample_blend", "sampled_mode", "bank_enabled", "bank_searched",
-           "bank_needed", "check_mirror"]
+           "knn_base_path", "pad_base_path", "blend", "sample_blend", "bank_sample_blend", "sampled_mode",
+           "sample_weight", "bank_enabled", "bank_searched", "bank_needed", "check_mirror"]
 
 BANK_FILE = "bank.npz"
 SWITCHES = ("model.bank_k", "model.bank_weight", "model.bank_tau", "model.bank_sample_weight")   # inference only
@@ -375,3 +375,13 @@ def bank_needed(model_cfg) -> bool:
     """The model needs a bank: for the blend (:func:`bank_enabled`), as its residual base (``bank_base``) or for
     the sampled mode (``bank_sample_weight``)."""
     return bank_searched(model_cfg) or float(getattr(model_cfg, "bank_sample_weight", 0.0)) > 0
+
+
+def sample_weight(cfg, gate_weight=None):
+    """The sampled mode's blend weight: ``cfg.bank_sample_weight``, times the gate's weight (a number or (B,)
+    array) with ``cfg.bank_sample_gated``, so samples leave the fill toward captured motion only where the gate
+    says the keyframes are inside the training motion.  Returns a number or a (B, 1, 1) array."""
+    if not cfg.bank_sample_gated or gate_weight is None:
+        return cfg.bank_sample_weight
+    w = cfg.bank_sample_weight * np.asarray(gate_weight, np.float64)
+    return float(w) if w.ndim == 0 else w[:, None, None]

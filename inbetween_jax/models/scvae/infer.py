@@ -22,7 +22,7 @@ import numpy as np
 from inbetween_jax.models.scvae import model as M
 from inbetween_jax.models.scvae.bank import (BANK_FILE, TransitionBank, bank_enabled, bank_needed, bank_sample_blend,
                                              bank_searched, blend, knn_base_path, knn_transition, pad_base_path,
-                                             sampled_mode)
+                                             sample_weight, sampled_mode)
 from inbetween_jax.models.scvae.context import AFTER, BEFORE, context_kind, context_offsets, neighbours, onto_context
 from inbetween_jax.models.scvae.features import keyframe_contacts, past_frame_inputs
 from inbetween_jax.models.scvae.losses import fk_positions
@@ -183,16 +183,6 @@ def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_sampl
         out["q"], out["r"] = bank_samples(bank, cfg, windows, n_past, n_trans, out["q"], out["r"],
                                           out.get("gate_weight"))
     return out
-
-
-def sample_weight(cfg, gate_weight=None):
-    """The sampled mode's blend weight: ``cfg.bank_sample_weight``, times the gate's weight (a number or (B,)
-    array) with ``cfg.bank_sample_gated``, so samples leave the fill toward captured motion only where the gate
-    says the keyframes are inside the training motion.  Returns a number or a (B, 1, 1) array."""
-    if not cfg.bank_sample_gated or gate_weight is None:
-        return cfg.bank_sample_weight
-    w = cfg.bank_sample_weight * np.asarray(gate_weight, np.float64)
-    return float(w) if w.ndim == 0 else w[:, None, None]
 
 
 def bank_samples(bank: TransitionBank, cfg, windows, n_past: int, n_trans: int, q, r, gate_weight=None):
