@@ -104,8 +104,11 @@ def test_infill_json_says_which_neighbours_the_fill_followed(tmp_path):
     for start, end, kind in ((40, 70, "both sides"), (0, 30, "after the end")):
         out = tmp_path / kind.replace(" ", "_")
         assert main(["infill", "--model", "scvae", "--start", f"{bvh}:{start}", "--end", f"{bvh}:{end}", "--frames",
-                     str(end - start - 1), "--out", str(out)]) == 0
-        assert json.load(open(out / "infill.json"))["context"] == kind
+                     str(end - start - 1), "--samples", "3", "--out", str(out)]) == 0
+        info = json.load(open(out / "infill.json"))
+        assert info["context"] == kind
+        moved = [s["toward_captured"] for s in info["samples_ood"]]   # sample 0 is the fill; the others by the gate
+        assert moved[0] == 0.0 and moved[1] == moved[2] == pytest.approx(0.15 * info["gate_weight"], abs=1e-4)
 
 
 def test_neighbour_velocity_is_capped_and_small_motion_kept():

@@ -387,10 +387,14 @@ def infill(args, run):
         samples.append((name, [out if keys is None else expand(out, keys, ps.match)], None))
     from inbetween_jax.evaluation.samples import sample_spread
     spread = sample_spread([m[0] for _, m, _ in samples])
+    w = float(sample_weight(m, gated.get("gate_weight"))) if trained.bank is not None and sampled_mode(
+        m, args.samples) else 0.0
+    blends = [0.0] + [round(w, 4)] * (args.samples - 1)      # how far each sample moved toward captured motion
     return InfillResult(samples=samples, summary={**keyframes, "frames": args.frames,
                                                   "samples": args.samples, "step": trained.step,
                                                   "past_frame": past, "context": context, **gated,
                                                   **spread,
-                                                  "samples_ood": [dict(gated, sample=n) for n in
-                                                                  sample_names(args.samples)] if gated else []},
+                                                  "samples_ood": [dict(gated, sample=n, toward_captured=b) for n, b in
+                                                                  zip(sample_names(args.samples), blends)]
+                                                  if gated else []},
                         notes=notes)
