@@ -2,7 +2,7 @@
 "Current results"): a change that makes them worse than their documented ratio to their base fails here.
 
 Each check is a subset of the bench's protocol, cheap enough for the default suite: the S-CVAE on the first 24
-Table-1 windows at 30 frames (4 samples; gated, as shipped), the CAE on the time-matched 1 s gap of every test
+Table-1 windows at 30 frames (4 samples; gated, as shipped; and inside a clip), the CAE on the time-matched 1 s gap of every test
 clip, the interaction model on 24 windows of 30 frames of the salsa test takes (one sample, true gap, gated and
 eased as shipped; needs ../shared/data/cmu_pairs).  The reference ratios were measured by these same functions on the shipped weights; the tolerance covers
 sampling noise, not a regression.
@@ -15,6 +15,7 @@ import pytest
 from inbetween_jax.shipped import shipped_run
 
 SCVAE_RATIO_30 = 0.992    # L2P / Slerp's, 24 windows, 30 frames, 4 samples (seed 0)
+SCVAE_IN_CLIP_RATIO_30 = 0.777  # the same samples inside a clip (model.context_base), L2P / Slerp's
 CAE_RATIO_1S = 0.916      # gap error / linear fill's, time-matched 1 s gap, every test clip
 INTERACTION_RATIO_30 = 0.871  # L2P / interpolation's, 24 salsa test windows, 30 frames, one sample
 TOL = 0.02
@@ -36,6 +37,10 @@ def test_shipped_scvae_keeps_its_ratio_to_slerp():
     base = transition_metrics(bench, 10, 30, q[None], r[None], x_mean, x_std)["L2P"]
     assert ours / base == pytest.approx(SCVAE_RATIO_30, abs=TOL)
     assert ours / base <= 1.0 + TOL                        # never worse than Slerp here, beyond sampling noise
+    from inbetween_jax.models.scvae.context import in_clip   # inside a clip: onto the Hermite path (as infill)
+    cq, cr, _, _ = in_clip(bench, 10, 30, s["q"], s["r"], trained.cfg.model)
+    clip = transition_metrics(bench, 10, 30, cq, cr, x_mean, x_std)["L2P"] / base
+    assert clip == pytest.approx(SCVAE_IN_CLIP_RATIO_30, abs=TOL)
 
 
 def test_shipped_cae_keeps_its_ratio_to_linear_fill():
