@@ -147,3 +147,26 @@ def test_a_side_needs_two_frames_and_the_bench_windows_give_them():
                     (q[:, k1 + 1], r[:, k1 + 1], None, None))
     assert nb[0] is not None and nb[2] is None and nb[3] is None
     assert context_kind({"qp": 0, "rp": 0, "qp2": 0, "rp2": 0}, {"qn": 0, "rn": 0}) == "before the start"
+
+
+def test_a_model_whose_base_continues_the_start_gets_the_end_side_only():
+    """``model.base_velocity`` (``improved-velocity``): the network's own base already continues the frame before
+    the start keyframe, so the fill inside a clip adds only the end side's motion (not the start's twice)."""
+    from inbetween_jax.data import read_bvh
+    from inbetween_jax.data.retarget import prepare
+    from inbetween_jax.models.scvae import infer
+    run, trained = _shipped_scvae()
+    vel = _switch(trained, base_velocity=True, ood_gate=False)
+    fa = tuple(trained.extra.get("forward_axis") or trained.skeleton.forward_axis())
+    path = os.path.join(ASSETS, "13_10.bvh")
+    m = prepare(read_bvh(path), path, trained.skeleton, run.fps).motion
+    k0, k1, n = 60, 81, 20
+    frame = lambda i: {"q": m.local_quats[i], "r": m.root_pos[i]}  # noqa: E731
+    s = {**frame(k0), "c": np.zeros(4), "qp": m.local_quats[k0 - 1], "rp": m.root_pos[k0 - 1]}
+    e = {**frame(k1), "c": np.zeros(4), "qn": m.local_quats[k1 + 1], "rn": m.root_pos[k1 + 1],
+         "qn2": m.local_quats[k1 + 2], "rn2": m.root_pos[k1 + 2]}
+    two = dict(s, qp2=m.local_quats[k0 - 2], rp2=m.root_pos[k0 - 2])
+    a, b = (infer.infill_between(vel, m.skeleton, x, e, n, 1, 0, fa) for x in (two, s))
+    np.testing.assert_allclose(a["r"], b["r"], atol=1e-9)             # the start side's frames are not used
+    c = infer.infill_between(_switch(trained, ood_gate=False), m.skeleton, two, e, n, 1, 0, fa)
+    assert np.abs(c["r"] - a["r"]).max() > 1e-3                        # without base_velocity they are

@@ -19,7 +19,7 @@ import numpy as np
 from inbetween_jax.baselines.velocity_interpolation import velocity_offsets
 from inbetween_jax.geometry import quat_conj, quat_mul, quat_normalize
 
-__all__ = ["context_offsets", "limit_neighbour", "neighbours", "onto_context", "context_kind", "in_clip", "BEFORE",
+__all__ = ["context_offsets", "limit_neighbour", "neighbours", "known_sides", "onto_context", "context_kind", "in_clip", "BEFORE",
            "AFTER", "HERMITE_NAME", "IN_CLIP_NAME"]
 
 HERMITE_NAME = "Hermite through the frames beside the keyframes"      # bench rows (models/scvae/bench.py)
@@ -107,6 +107,14 @@ def onto_context(q, r, slerp_q, slerp_r, dq, dr):
 
 
 BEFORE, AFTER = ("qp", "rp", "qp2", "rp2"), ("qn", "rn", "qn2", "rn2")   # the keys infill_between reads
+
+
+def known_sides(start: dict, end: dict) -> tuple:
+    """``(before, after)`` for :func:`neighbours` from keyframe dicts carrying :data:`BEFORE` / :data:`AFTER`
+    (each side its four arrays with a batch axis of one, or None without both frames)."""
+    def side(d, keys):
+        return tuple(np.asarray(d[k], np.float64)[None] for k in keys) if all(k in d for k in keys) else None
+    return side(start, BEFORE), side(end, AFTER)
 
 
 def context_kind(start: dict, end: dict) -> str:

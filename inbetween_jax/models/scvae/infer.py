@@ -23,7 +23,7 @@ from inbetween_jax.models.scvae import model as M
 from inbetween_jax.models.scvae.bank import (BANK_FILE, TransitionBank, bank_enabled, bank_needed, bank_sample_blend,
                                              bank_searched, blend, knn_base_path, knn_transition, pad_base_path,
                                              sample_weight, sampled_mode)
-from inbetween_jax.models.scvae.context import AFTER, BEFORE, context_kind, context_offsets, neighbours, onto_context
+from inbetween_jax.models.scvae.context import context_kind, context_offsets, known_sides, neighbours, onto_context
 from inbetween_jax.models.scvae.features import keyframe_contacts, past_frame_inputs
 from inbetween_jax.models.scvae.losses import fk_positions
 
@@ -278,9 +278,10 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
     ctx = context_kind(start, end) if m.context_base else "none"
     if ctx != "none":                # the departure from Slerp / lerp onto the Hermite path through the neighbours
         from inbetween_jax.models.scvae.gate import slerp_base
-        side = lambda d, ks: tuple(np.asarray(d[k], np.float64)[None] for k in ks) if all(  # noqa: E731
-            k in d for k in ks) else None
-        nb = neighbours(m, skeleton, qs[None], roots[:1], qe[None], roots[1:], side(start, BEFORE), side(end, AFTER))
+        before, after = known_sides(start, end)
+        if m.base_velocity and "qp" in start:     # the network's own base continues the start's motion already
+            before = None
+        nb = neighbours(m, skeleton, qs[None], roots[:1], qe[None], roots[1:], before, after)
         dq, dr = context_offsets(qs[None], roots[:1], qe[None], roots[1:], frames, m.context_damping, *nb)
         mid_q, mid_r = onto_context(q[:, None, 1:-1], r[:, None, 1:-1],
                                     *slerp_base(qs[None], roots[:1], qe[None], roots[1:], frames), dq, dr)
