@@ -52,12 +52,21 @@ p.add_argument("--stride", type=int, default=45)
 p.add_argument("--sample-weights", default=None, help="score the sampled mode at these model.bank_sample_weight")
 p.add_argument("--first", type=int, default=3, help="first start keyframe of a file (1: from its second frame)")
 p.add_argument("--no-cap", action="store_true", help="model.context_max_turn = context_max_step = 0")
+p.add_argument("--set", action="append", default=[], metavar="model.KEY=VALUE", help="an inference switch, e.g. "
+               "model.ood_gate=true for a run folder whose config has it off")
 a = p.parse_args()
 run = load_run(a.run) if a.run else shipped_run("scvae")
 trained = scvae.load(run)
-if a.no_cap:
-    trained = dataclasses.replace(trained, cfg=dataclasses.replace(trained.cfg, model=dataclasses.replace(
-        trained.cfg.model, context_max_turn=0.0, context_max_step=0.0)))
+overrides = {"context_max_turn": 0.0, "context_max_step": 0.0} if a.no_cap else {}
+for kv in a.set:
+    key, value = kv.removeprefix("model.").split("=", 1)
+    kind = type(getattr(trained.cfg.model, key))
+    overrides[key] = value.lower() in ("1", "true") if kind is bool else kind(value)
+trained = dataclasses.replace(trained, cfg=dataclasses.replace(trained.cfg, model=dataclasses.replace(
+    trained.cfg.model, **overrides)))
+if trained.cfg.model.ood_gate and trained.gate is None:          # switched on here: the run folder's ood.npz
+    from inbetween_jax.models.ood import run_gate
+    trained = dataclasses.replace(trained, gate=run_gate(run.run_dir, True))
 dampings = [float(x) for x in a.damping.split(",")]
 
 
