@@ -27,6 +27,7 @@ from inbetween_jax.models.scvae import infer as scvae
 from inbetween_jax.models.scvae.context import AFTER, BEFORE
 from inbetween_jax.models.scvae.gate import slerp_base
 from inbetween_jax.shipped import shipped_run
+from inbetween_jax.train.config import apply_overrides
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("files", nargs="+")
@@ -39,13 +40,7 @@ p.add_argument("--scvae-set", action="append", default=[], metavar="model.KEY=VA
 a = p.parse_args()
 srun, crun = shipped_run("scvae"), shipped_run("cae")
 sm, cm = scvae.load(srun), load_cae(crun)
-for kv in a.scvae_set:
-    key, value = kv.split("=", 1)
-    field = key.removeprefix("model.")
-    kind = type(getattr(sm.cfg.model, field))
-    value = value.lower() in ("1", "true") if kind is bool else kind(value)
-    sm = dataclasses.replace(sm, cfg=dataclasses.replace(sm.cfg, model=dataclasses.replace(sm.cfg.model,
-                                                                                         **{field: value})))
+sm = dataclasses.replace(sm, cfg=apply_overrides(sm.cfg, a.scvae_set))
 fa = tuple(sm.extra.get("forward_axis") or sm.skeleton.forward_axis())
 fk = lambda m, q, r: forward_kinematics(q, np.concatenate([r[..., None, :], np.broadcast_to(  # noqa: E731
     m.local_pos[0, 1:], r.shape[:-1] + m.local_pos[0, 1:].shape)], -2), m.skeleton.parents)[1]

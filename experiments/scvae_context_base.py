@@ -41,6 +41,7 @@ from inbetween_jax.models.scvae import infer as scvae
 from inbetween_jax.models.scvae.context import AFTER, BEFORE, context_offsets, neighbours
 from inbetween_jax.models.scvae.gate import slerp_base
 from inbetween_jax.shipped import shipped_run
+from inbetween_jax.train.config import apply_overrides
 from inbetween_jax.train.run import load_run
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -57,13 +58,8 @@ p.add_argument("--set", action="append", default=[], metavar="model.KEY=VALUE", 
 a = p.parse_args()
 run = load_run(a.run) if a.run else shipped_run("scvae")
 trained = scvae.load(run)
-overrides = {"context_max_turn": 0.0, "context_max_step": 0.0} if a.no_cap else {}
-for kv in a.set:
-    key, value = kv.removeprefix("model.").split("=", 1)
-    kind = type(getattr(trained.cfg.model, key))
-    overrides[key] = value.lower() in ("1", "true") if kind is bool else kind(value)
-trained = dataclasses.replace(trained, cfg=dataclasses.replace(trained.cfg, model=dataclasses.replace(
-    trained.cfg.model, **overrides)))
+caps = ["model.context_max_turn=0", "model.context_max_step=0"] if a.no_cap else []
+trained = dataclasses.replace(trained, cfg=apply_overrides(trained.cfg, caps + a.set))
 if trained.cfg.model.ood_gate and trained.gate is None:          # switched on here: the run folder's ood.npz
     from inbetween_jax.models.ood import run_gate
     trained = dataclasses.replace(trained, gate=run_gate(run.run_dir, True))

@@ -148,3 +148,18 @@ def test_dct_roundtrip_and_orthonormal():
     np.testing.assert_allclose(idct(dct(x)), x, atol=1e-5)
     from scipy.fft import dct as sdct
     np.testing.assert_allclose(dct(x), sdct(np.asarray(x), axis=1, norm="ortho"), atol=1e-4)
+
+
+def test_quat_align_flips_into_the_reference_hemisphere_in_numpy_and_jax():
+    from inbetween_jax.geometry import quat_align
+    rng = np.random.default_rng(3)
+    q = rng.normal(size=(5, 4))
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    ref = rng.normal(size=(5, 4))
+    out = quat_align(q, ref)
+    assert isinstance(out, np.ndarray) and out.dtype == np.float64
+    assert np.all(np.sum(out * ref, -1) >= 0)
+    np.testing.assert_allclose(np.abs(out), np.abs(q))                 # the same rotations, only signs flipped
+    assert np.any(np.sum(q * ref, -1) < 0)                             # this draw needs a flip somewhere
+    np.testing.assert_allclose(np.asarray(quat_align(jnp.asarray(q), jnp.asarray(ref))), out.astype(np.float32),
+                               atol=1e-7)

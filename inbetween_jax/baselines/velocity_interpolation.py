@@ -18,7 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from inbetween_jax.baselines.interpolation import interpolate_transition
-from inbetween_jax.geometry import quat_conj, quat_from_axis_angle, quat_mul, quat_to_axis_angle
+from inbetween_jax.geometry import quat_align, quat_conj, quat_from_axis_angle, quat_mul, quat_to_axis_angle
 
 __all__ = ["hermite_weights", "end_hermite_weights", "rotation_vector", "rotation_from_vector", "velocity_offsets",
            "velocity_interpolate_transition"]
@@ -95,11 +95,11 @@ def velocity_interpolate_transition(local_quats, root_pos, n_past: int, n_trans:
     k0, k1, length = n_past - 1, n_past + n_trans, n_trans + 1
     if end_velocity and q.shape[1] <= k1 + 1:
         raise ValueError(f"end_velocity: the clips have no frame after the target keyframe {k1}")
-    q1 = q[:, k1] * np.where(np.sum(q[:, k1] * q[:, k0], -1, keepdims=True) < 0, -1.0, 1.0)
+    q1 = quat_align(q[:, k1], q[:, k0])
     nxt = {}
     if end_velocity:
-        q2 = q[:, k1 + 1] * np.where(np.sum(q[:, k1 + 1] * q1, -1, keepdims=True) < 0, -1.0, 1.0)
-        nxt = {"q_next": jnp.asarray(q2, jnp.float32), "r_next": jnp.asarray(r[:, k1 + 1], jnp.float32)}
+        nxt = {"q_next": jnp.asarray(quat_align(q[:, k1 + 1], q1), jnp.float32),
+               "r_next": jnp.asarray(r[:, k1 + 1], jnp.float32)}
     dq, dr = velocity_offsets(*(jnp.asarray(x, jnp.float32) for x in (q[:, k0 - 1], q[:, k0], q1, r[:, k0 - 1],
                                                                       r[:, k0], r[:, k1])), length, length,
                                 damping, **nxt)

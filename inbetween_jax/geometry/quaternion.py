@@ -194,6 +194,12 @@ def quat_slerp(q0, q1, t, linear_threshold: float = 0.01):
     return quat_normalize(w0[..., None] * q0 + w1[..., None] * q1)
 
 
+def quat_align(q, ref):
+    """Flip quaternions q (..., 4) into the hemisphere of ref (broadcast against q): the same rotations."""
+    xp = _xp(q, ref)
+    return xp.where(xp.sum(q * ref, axis=-1, keepdims=True) < 0, -q, q)
+
+
 def quat_fix_sign(q, axis: int = 0):
     """Sign continuity: flip each quaternion so it lies in the hemisphere of its predecessor.
 

@@ -28,7 +28,7 @@ from inbetween_jax.errors import UserError
 from inbetween_jax.geometry.kinematics import forward_kinematics, local_positions
 from inbetween_jax.geometry.mirror import MIRROR_TAG, rest_side_axis
 from inbetween_jax.geometry.quaternion import quat_from_axis_angle, quat_inv, quat_mul, quat_normalize, quat_rotate
-from inbetween_jax.geometry.quaternion import quat_fix_sign_np, quat_slerp
+from inbetween_jax.geometry.quaternion import quat_align, quat_fix_sign_np, quat_slerp
 
 __all__ = ["BANK_FILE", "SWITCHES", "MIRROR_TAG", "TransitionBank", "keyframe_space", "knn_transition",
            "knn_base_path", "pad_base_path", "blend", "sample_blend", "bank_sample_blend", "sampled_mode",
@@ -220,11 +220,6 @@ def _from_space(q, r, yaw, xz):
     return q, r + np.stack([xz[:, 0], np.zeros(len(xz)), xz[:, 1]], -1)[:, None]
 
 
-def _align(q, ref):
-    """Flip quaternions q into the hemisphere of ref (broadcast)."""
-    return np.where(np.sum(q * ref, -1, keepdims=True) < 0, -q, q)
-
-
 def _warped_mean(cand_q, cand_r, key_q, key_r, weights):
     """Warp candidates onto the keyframes and average them.
 
@@ -235,11 +230,11 @@ def _warped_mean(cand_q, cand_r, key_q, key_r, weights):
     n = cand_q.shape[2]
     t = np.arange(n) / (n - 1)
     d0 = quat_mul(key_q[:, None, 0], quat_inv(cand_q[:, :, 0]))                   # (B, k, J, 4) offsets
-    d1 = _align(quat_mul(key_q[:, None, 1], quat_inv(cand_q[:, :, -1])), d0)
+    d1 = quat_align(quat_mul(key_q[:, None, 1], quat_inv(cand_q[:, :, -1])), d0)
     warp_q = quat_mul(quat_slerp(d0[:, :, None], d1[:, :, None], t[None, None, :, None]), cand_q)
     o0, o1 = key_r[:, None, 0] - cand_r[:, :, 0], key_r[:, None, 1] - cand_r[:, :, -1]   # (B, k, 3)
     warp_r = cand_r + o0[:, :, None] + t[None, None, :, None] * (o1 - o0)[:, :, None]
-    warp_q = _align(warp_q, warp_q[:, :1])
+    warp_q = quat_align(warp_q, warp_q[:, :1])
     w = weights[:, :, None, None]
     return quat_normalize((warp_q * w[..., None]).sum(1)), (warp_r * w).sum(1)
 
@@ -292,11 +287,11 @@ def knn_transition(bank: TransitionBank, key_q, key_r, tgt_q, tgt_r, length: int
             rep = lambda a: np.repeat(a, k, 0)
             mq, mr = _warped_mean(cq[:, None], cr[:, None], rep(sq), rep(sr), np.ones((b * k, 1)))
             mq, mr = _from_space(mq, mr, rep(yaw), rep(xz))
-            mq[:, 0] = _align(mq[:, 0], rep(q2[:, 0]))
+            mq[:, 0] = quat_align(mq[:, 0], rep(q2[:, 0]))
         else:
             mq, mr = _warped_mean(cq.reshape(b, k, n, -1, 4), cr.reshape(b, k, n, 3), sq, sr, w)
             mq, mr = _from_space(mq, mr, yaw, xz)
-            mq[:, 0] = _align(mq[:, 0], q2[:, 0])         # the start keyframe's sign, then continuous in time
+            mq[:, 0] = quat_align(mq[:, 0], q2[:, 0])         # the start keyframe's sign, then continuous in time
         mq, mr = quat_fix_sign_np(mq, axis=1)[:, 1:-1], mr[:, 1:-1]
         out_q.append(mq.reshape((b, k) + mq.shape[1:]) if each else mq)
         out_r.append(mr.reshape((b, k) + mr.shape[1:]) if each else mr)
@@ -319,7 +314,7 @@ def pad_base_path(start_q, start_r, tgt_q, tgt_r, q, r, max_length: int):
     keyframes, framed by the start keyframe and the target (held to time max_length)."""
     length = q.shape[1] + 1
     hold = max_length + 1 - length
-    tq = _align(np.asarray(tgt_q, np.float64)[:, None], q[:, -1:])
+    tq = quat_align(np.asarray(tgt_q, np.float64)[:, None], q[:, -1:])
     bq = np.concatenate([np.asarray(start_q, np.float64)[:, None], q, np.repeat(tq, hold, 1)], 1)
     br = np.concatenate([np.asarray(start_r, np.float64)[:, None], r,
                          np.repeat(np.asarray(tgt_r, np.float64)[:, None], hold, 1)], 1)
@@ -330,7 +325,7 @@ def blend(q, r, bank_q, bank_r, weight: float):
     """Mix samples q (S, B, L, J, 4), r (S, B, L, 3) with the bank's transition bank_q (B, L, J, 4),
     bank_r (B, L, 3): slerp / lerp by ``weight`` (0: the samples, 1: the bank's)."""
     q, r = np.asarray(q, np.float64), np.asarray(r, np.float64)
-    return quat_slerp(q, _align(np.asarray(bank_q, np.float64)[None], q), weight), r + weight * (bank_r[None] - r)
+    return quat_slerp(q, quat_align(np.asarray(bank_q, np.float64)[None], q), weight), r + weight * (bank_r[None] - r)
 
 
 def sample_blend(q, r, each_q, each_r, weight: float):

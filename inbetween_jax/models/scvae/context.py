@@ -17,18 +17,13 @@ from __future__ import annotations
 import numpy as np
 
 from inbetween_jax.baselines.velocity_interpolation import velocity_offsets
-from inbetween_jax.geometry import quat_conj, quat_mul, quat_normalize
+from inbetween_jax.geometry import quat_align, quat_conj, quat_mul, quat_normalize
 
-__all__ = ["context_offsets", "limit_neighbour", "neighbours", "known_sides", "onto_context", "context_kind", "in_clip", "BEFORE",
-           "AFTER", "HERMITE_NAME", "IN_CLIP_NAME"]
+__all__ = ["context_offsets", "limit_neighbour", "neighbours", "known_sides", "onto_context", "context_kind",
+           "in_clip", "BEFORE", "AFTER", "HERMITE_NAME", "IN_CLIP_NAME"]
 
 HERMITE_NAME = "Hermite through the frames beside the keyframes"      # bench rows (models/scvae/bench.py)
 IN_CLIP_NAME = "S-CVAE inside a clip (onto that Hermite path)"
-
-
-def _aligned(q, ref):
-    q = np.asarray(q, np.float64)
-    return np.where(np.sum(q * ref, -1, keepdims=True) < 0, -q, q)
 
 
 def limit_neighbour(q_key, r_key, q_nb, r_nb, max_turn: float, max_step: float, q_nb2=None, r_nb2=None):
@@ -43,7 +38,7 @@ def limit_neighbour(q_key, r_key, q_nb, r_nb, max_turn: float, max_step: float, 
     q_key, r_key = np.asarray(q_key, np.float64), np.asarray(r_key, np.float64)
 
     def turn(q, scale):               # rotation vector from the keyframe to q, times scale
-        axis, angle = quat_to_axis_angle(quat_mul(quat_conj(q_key), _aligned(q, q_key)))
+        axis, angle = quat_to_axis_angle(quat_mul(quat_conj(q_key), quat_align(np.asarray(q, np.float64), q_key)))
         return axis * (scale * angle)[..., None]
 
     w, d = turn(q_nb, 1.0), np.asarray(r_nb, np.float64) - r_key
@@ -85,12 +80,16 @@ def context_offsets(q0, r0, q1, r1, n_frames: int, damping: float, qp=None, rp=N
     q0 / q1 (B, J, 4) local quaternions, r0 / r1 (B, 3) roots of the keyframes; qp / rp the frame before the start
     keyframe, qn / rn the frame after the end keyframe (each pair may be None)."""
     import jax.numpy as jnp
+    def f32(x, ref=None):             # sign-aligned to ref first (None stays None)
+        if x is None:
+            return None
+        x = np.asarray(x, np.float64)
+        return jnp.asarray(x if ref is None else quat_align(x, ref), jnp.float32)
+
     q0 = np.asarray(q0, np.float64)
-    q1 = _aligned(q1, q0)
-    f32 = lambda x: None if x is None else jnp.asarray(x, jnp.float32)  # noqa: E731
-    dq, dr = velocity_offsets(f32(None if qp is None else _aligned(qp, q0)), f32(q0), f32(q1), f32(rp), f32(r0),
-                              f32(r1), n_frames + 1, n_frames + 1, damping,
-                              q_next=f32(None if qn is None else _aligned(qn, q1)), r_next=f32(rn))
+    q1 = quat_align(np.asarray(q1, np.float64), q0)
+    dq, dr = velocity_offsets(f32(qp, q0), f32(q0), f32(q1), f32(rp), f32(r0), f32(r1), n_frames + 1, n_frames + 1,
+                              damping, q_next=f32(qn, q1), r_next=f32(rn))
     return np.asarray(dq[:, 1:n_frames + 1], np.float64), np.asarray(dr[:, 1:n_frames + 1], np.float64)
 
 

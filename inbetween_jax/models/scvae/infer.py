@@ -363,15 +363,15 @@ def infill(args, run):
     if context != "none":
         notes.append(f"following the motion beside the keyframes ({context}): Hermite path, not Slerp")
     gated = {k: res[k] for k in ("ood_score", "gate_weight") if k in res}
+    sampling = trained.bank is not None and sampled_mode(m, args.samples)
+    toward = float(sample_weight(m, gated.get("gate_weight"))) if sampling else 0.0   # samples 1.. toward capture
     if gated:
         from inbetween_jax.models.ood import gate_note
         notes.append(gate_note(gated["ood_score"], gated["gate_weight"],
                                "Slerp / lerp" if context == "none" else "the Hermite path"))
-        if (trained.bank is not None and sampled_mode(m, args.samples) and m.bank_sample_gated
-                and gated["gate_weight"] < 0.5):
-            w = sample_weight(m, gated["gate_weight"])
+        if sampling and m.bank_sample_gated and gated["gate_weight"] < 0.5:
             notes.append(f"the {args.samples} samples stay close to the fill: the keyframes lie outside the captured "
-                         f"motion the samples draw on (sampled-mode weight {w:.2f})")
+                         f"motion the samples draw on (sampled-mode weight {toward:.2f})")
     t = args.frames + 2
     w = (np.arange(t) / (t - 1))[:, None, None]
     base_pos = (1 - w) * sm.local_pos[sf] + w * em.local_pos[ef]       # joints with position channels: lerp
@@ -388,9 +388,7 @@ def infill(args, run):
         samples.append((name, [out if keys is None else expand(out, keys, ps.match)], None))
     from inbetween_jax.evaluation.samples import sample_spread
     spread = sample_spread([m[0] for _, m, _ in samples])
-    w = float(sample_weight(m, gated.get("gate_weight"))) if trained.bank is not None and sampled_mode(
-        m, args.samples) else 0.0
-    blends = [0.0] + [round(w, 4)] * (args.samples - 1)      # how far each sample moved toward captured motion
+    blends = [0.0] + [round(toward, 4)] * (args.samples - 1)     # sample 0 is the fill
     return InfillResult(samples=samples, summary={**keyframes, "frames": args.frames,
                                                   "samples": args.samples, "step": trained.step,
                                                   "past_frame": past, "context": context, **gated,
