@@ -6,7 +6,7 @@ passes them (used with ``model.context_base``, on in the shipped weights); with 
 best sample's error and the mean pairwise distance between samples over Slerp's error.  Gaps every ``--stride``
 frames; per-gap ratios summarised (median, 90th percentile, maximum, share > 1.10x) overall and per activity
 group, and the CAE's foot lift-offs per gap against the capture's and the straight line's (does a walking fill
-step? ``metrics/steps.py``).
+step? ``metrics/steps.py``) and the share of its gaps that follow a matched training window (``model.match_k``).
 
     python experiments/infill_check.py FILE.bvh ... [--scvae-frames 20,30] [--cae-seconds 1,2] [--samples 10]
 """
@@ -71,13 +71,15 @@ for path in a.files:
     for sec in [float(x) for x in a.cae_seconds.split(",")]:
         g = int(round(sec * crun.fps))
         for lo in range(10, cm_m.num_frames - g - 10, a.stride):
-            pos = process_motion(cm, cm_m, [(lo, lo + g)])["positions"]
+            out = process_motion(cm, cm_m, [(lo, lo + g)])
+            pos = out["positions"]
+            matched = float(any(r.get("match_weight", 0.0) > 0.5 for r in out["gaps_ood"]))
             w = (np.arange(1, g + 1) / (g + 1))[:, None, None]
             lin = gp[lo - 1] + w * (gp[lo + g] - gp[lo - 1])
             err = np.linalg.norm(pos[lo:lo + g] - gp[lo:lo + g], axis=-1).mean()
             feet, span = cm_m.skeleton.foot_joints(), slice(lo - 1, lo + g + 1)
             steps = [float(lift_offs(x, (feet[0], feet[2]))) for x in (pos[span], gp[span], np.concatenate(
-                [gp[lo - 1:lo], lin, gp[lo + g:lo + g + 1]]))]
+                [gp[lo - 1:lo], lin, gp[lo + g:lo + g + 1]]))] + [matched]
             res["cae"].append((group, g, err / np.linalg.norm(lin - gp[lo:lo + g], axis=-1).mean(), steps))
 for model, rows in res.items():
     print(f"{model} ({len(rows)} gaps of {os.path.basename(a.files[0])} ...):")
@@ -92,4 +94,5 @@ for model, rows in res.items():
                   f"per-joint distance) / Slerp's error {st[1]:.3f}")
         if model == "cae" and s["windows"]:
             st = np.mean([r[3] for r in rows if grp == "all" or r[0] == grp], 0)
-            print(f"  {'':12s} lift-offs per gap: fill {st[0]:.2f}, capture {st[1]:.2f}, straight line {st[2]:.2f}")
+            print(f"  {'':12s} lift-offs per gap: fill {st[0]:.2f}, capture {st[1]:.2f}, straight line {st[2]:.2f}; "
+                  f"gaps following a matched training window (model.match_k) {100 * st[3]:.0f} %")

@@ -1,5 +1,6 @@
-"""Write a run's motion bank and turn it on: an interaction run's (:mod:`inbetween_jax.models.interaction.bank`)
-or an S-CVAE run's (:mod:`inbetween_jax.models.scvae.bank`).
+"""Write a run's motion bank and turn it on: an interaction run's (:mod:`inbetween_jax.models.interaction.bank`),
+an S-CVAE run's (:mod:`inbetween_jax.models.scvae.bank`) or a CAE run's (the S-CVAE's format, matched in the CAE's
+features by :mod:`inbetween_jax.models.cae.bank`).
 
     write_bank(run_dir, source=None, split="fit", mirror=False, switches=()) -> dict
 
@@ -53,7 +54,8 @@ def scvae_bank(run, source: str, split: str = "fit", mirror: bool = False):
     return TransitionBank.from_motions(motions, np.asarray(fa, np.float64), mirror=mirror)
 
 
-BUILDERS = {"interaction": interaction_bank, "scvae": scvae_bank}     # model -> its bank, from the run's data
+# model -> its bank, from the run's data (the CAE matches gaps in the S-CVAE's bank format: models/cae/bank.py)
+BUILDERS = {"interaction": interaction_bank, "scvae": scvae_bank, "cae": scvae_bank}
 
 
 def run_fit_split(run, split: str) -> str:
@@ -62,6 +64,16 @@ def run_fit_split(run, split: str) -> str:
     name, and would put those subjects' other files in the bank)."""
     own = str(((run.config or {}).get("train") or {}).get("split", "train"))
     return "fit-subjects" if split == "fit" and own == "fit-subjects" else split
+
+
+def _shared_copy(model: str, run_dir: str, bank_path: str) -> str | None:
+    """For a CAE folder (whose bank is the S-CVAE's format): ``"scvae"`` when the ``scvae`` folder beside it (the
+    shipped weights' layout) holds a byte-identical bank, else None."""
+    import filecmp
+    if model != "cae":
+        return None
+    sibling = os.path.join(os.path.dirname(os.path.normpath(run_dir)), "scvae", os.path.basename(bank_path))
+    return "scvae" if os.path.isfile(sibling) and filecmp.cmp(sibling, bank_path, shallow=False) else None
 
 
 def write_bank(run_dir: str, source: str | None = None, split: str = "fit", mirror: bool = False,
@@ -92,6 +104,13 @@ def write_bank(run_dir: str, source: str | None = None, split: str = "fit", mirr
                     "frames": bank.num_frames, "switches": list(switches) or meta.get("bank", {}).get("switches", [])}
     bank_path = os.path.join(run_dir, module.BANK_FILE)
     bank.save(bank_path)
+    shared = _shared_copy(run.model, run_dir, bank_path)
+    if shared:                  # the same bytes beside it: recorded, not stored twice
+        os.remove(bank_path)
+        meta["bank"]["shared_with"] = shared
+        bank_path = os.path.join(os.path.dirname(os.path.normpath(run_dir)), shared, module.BANK_FILE)
+    else:
+        meta["bank"].pop("shared_with", None)
     with open(path + ".tmp", "w") as f:
         json.dump(meta, f, indent=1)
     os.replace(path + ".tmp", path)

@@ -35,7 +35,8 @@ INFERENCE_SWITCHES = {"interaction": ("model.refiner", "model.latent_scale", "mo
                                 "model.motion_temperature", "model.motion_spread", "model.bank_sample_weight",
                                 "model.bank_sample_gated", "model.context_base", "model.context_damping",
                                 "model.context_max_turn", "model.context_max_step"),
-                      "cae": ("model.mirror_average", "model.ood_gate", "model.root_bound")}
+                      "cae": ("model.mirror_average", "model.ood_gate", "model.root_bound", "model.match_k",
+                              "model.match_lo", "model.match_hi", "model.match_disp", "model.match_departure")}
 # Per model: the key-path prefixes of the train state that ``infer.load`` / inference use.
 KEEP = {"scvae": ("params", "stats"),                # generators + normalisation (disc, opt_g, opt_d dropped)
         "cae": ("params",),                          # opt_state dropped

@@ -91,6 +91,13 @@ class ModelConfig:
                                                 # training motion (ood.npz, models/ood.py; on in the shipped weights)
     root_bound: float = 0.0                     # inference: the root path stays within this many metres of the
                                                 # base's root path (0: unbounded, the paper)
+    match_k: int = 0                            # inference, inside a file: blend in the k nearest training windows
+                                                # of each gap's context (bank.npz, models/cae/bank.py); 0: off
+    match_lo: float = 0.0                       # match distance at and below which the matched fill is kept whole
+    match_hi: float = 0.0                       # match distance at and above which the gap keeps its fill
+    match_disp: float = 0.25                    # weight of the root's displacement and turn across the gap
+    match_departure: float = 0.5                # a match departing further from the fill than this share of the
+                                                # body's travel beside the gap is not used (bank.departure)
 
 
 @dataclasses.dataclass(frozen=True)

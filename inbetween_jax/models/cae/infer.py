@@ -22,7 +22,10 @@ from inbetween_jax.data.features import Normalizer
 from inbetween_jax.data.skeleton import Skeleton
 from inbetween_jax.geometry import forward_kinematics, quat_slerp
 from inbetween_jax.geometry.fit import fit_rotations
+from inbetween_jax.errors import UserError
 from inbetween_jax.models.cae import model as cae_model
+from inbetween_jax.models.cae.bank import (BANK_FILE, MatchBank, bank_folder, departure, match_enabled, match_gap, match_weight,
+                                           root_track)
 from inbetween_jax.models.cae.config import Config
 from inbetween_jax.models.cae.features import (body_frame_features, body_positions, mirror_clips, mirror_rows,
                                                num_features, to_global)
@@ -40,9 +43,10 @@ class TrainedCAE:
     and checkpoint ``step``."""
 
     def __init__(self, params, cfg: Config, normalizer: Normalizer, skeleton: Skeleton, num_joints: int,
-                 step: int, gate: tuple | None = None):
+                 step: int, gate: tuple | None = None, match=None):
         self.params, self.cfg, self.normalizer, self.skeleton, self.step = params, cfg, normalizer, skeleton, step
         self.gate = gate            # (ContextBank, Gate) of ood.npz when model.ood_gate is on
+        self.match = match          # bank.MatchBank of bank.npz when model.match_k > 0
         self.num_joints = int(num_joints)
         apply = functools.partial(cae_model.apply, cfg=cfg)
         if cfg.model.mirror_average:
@@ -82,7 +86,17 @@ def load(run: Run) -> TrainedCAE:
     normalizer = Normalizer(np.asarray(run.stats["mean"], np.float32), np.asarray(run.stats["std"], np.float32))
     from inbetween_jax.models.ood import run_gate
     gate = run_gate(run.run_dir, cfg.model.ood_gate)
-    return TrainedCAE(state["params"], cfg, normalizer, Skeleton.from_dict(run.skeleton), j, run.step, gate)
+    skeleton = Skeleton.from_dict(run.skeleton)
+    match = None
+    if match_enabled(cfg.model):
+        from inbetween_jax.models.scvae.bank import TransitionBank
+        from inbetween_jax.train.run import load_run_file
+        tb = load_run_file(bank_folder(run.run_dir), BANK_FILE, TransitionBank.load, "model.match_k")
+        try:
+            match = MatchBank.from_transition_bank(tb, skeleton, normalizer, j)
+        except UserError as e:
+            raise RunError(f"{run.run_dir}: {e}") from None
+    return TrainedCAE(state["params"], cfg, normalizer, skeleton, j, run.step, gate, match)
 
 
 def fill(model, x_norm, mask, keep_known: bool = False, chunk: int = 64, gate: bool = True) -> np.ndarray:
@@ -155,6 +169,8 @@ def process_motion(model, motion, gaps=(), noise: float = 0.0, dropout: float = 
         from inbetween_jax.models.cae.gate import gate_clips
         y, info = gate_clips(model, (x_in * mask)[None], mask[None], y[None])
         y, gated = y[0], info[0]
+    if gaps and getattr(model, "match", None) is not None and match_enabled(model.cfg.model):
+        gated = _matched(model, y, x_in * mask, feats, fm, gated)
     bound = float(getattr(model.cfg.model, "root_bound", 0.0)) * 100.0 if hasattr(model, "cfg") else 0.0
     pos = to_global(y, model.normalizer, j, feats.ref0, feats.yaw0, known_feats=feats.features, frame_mask=fm,
                     root_bound=bound if gaps else 0.0)
@@ -170,6 +186,26 @@ def process_motion(model, motion, gaps=(), noise: float = 0.0, dropout: float = 
     return {"positions": pos.astype(np.float32), "motion": out, "frames": refit,
             "error_cm": (float(err[0]), float(err[1])), "fk_gap_cm": fk_gap, "gaps_ood": gated}
 
+
+
+def _matched(model, y, x_masked, feats, frame_mask, gated) -> list:
+    """Blend each whole gap of ``y`` (D, T), in place, toward its matched training window (:mod:`.bank`), by the
+    match gate's weight.  Returns the per-gap records (``gated``'s, or new ones) with ``match_distance`` and
+    ``match_weight`` added."""
+    from inbetween_jax.models.cae.masks import gap_ranges
+    mc = model.cfg.model
+    ref, yaw = root_track(feats.features, model.num_joints, feats.ref0, feats.yaw0)    # read at known frames only
+    rows = [dict(r) for r in gated] or [{"gap": [int(a), int(b)]} for a, b in gap_ranges(frame_mask)]
+    for row in rows:
+        a, b = row["gap"]
+        fill_, dist = match_gap(model.match, x_masked, ref, yaw, a, b, mc.match_k, mc.match_disp)
+        dep = None if fill_ is None else departure(y[:, a:b], fill_, feats.global_pos, a, b, model.normalizer,
+                                                    model.num_joints)
+        w = match_weight(dist, mc.match_lo, mc.match_hi) if dep is not None and dep <= mc.match_departure else 0.0
+        if w > 0:
+            y[:, a:b] += w * (fill_ - y[:, a:b])
+        row.update(match_distance=dist if np.isfinite(dist) else None, match_departure=dep, match_weight=w)
+    return rows
 
 
 def _save_npy(path, arr) -> None:
@@ -214,12 +250,17 @@ def infill(args, run: Run) -> InfillResult:
     summary = {"input": args.bvh, "gaps": file_gaps, "frames": motion.num_frames, "step": model.step,
                "error_cm_mean": res["error_cm"][0], "fk_gap_cm": res["fk_gap_cm"],
                "refit_frames": int(np.sum(res["frames"]))}
-    if res["gaps_ood"]:             # the gate, per gap (in the order of "gaps")
+    if res["gaps_ood"]:             # the gate and the match, per gap (in the order of "gaps")
         from inbetween_jax.models.ood import gate_note
-        summary["gaps_ood"] = [{"gap_index": i, "ood_score": g["ood_score"], "gate_weight": g["gate_weight"]}
+        keys = ("ood_score", "gate_weight", "match_distance", "match_departure", "match_weight")
+        summary["gaps_ood"] = [dict({"gap_index": i}, **{k: g[k] for k in keys if k in g})
                                for i, g in enumerate(res["gaps_ood"])]
         for i, g in enumerate(res["gaps_ood"]):
-            if g["gate_weight"] < 0.5:
+            if g.get("match_weight", 0.0) >= 0.5:
+                notes.append(f"gap {i + 1}: follows the nearest training motion (match distance "
+                             f"{g['match_distance']:.3f}, departure {g['match_departure']:.2f}, weight "
+                             f"{g['match_weight']:.2f})")
+            elif g.get("gate_weight", 1.0) < 0.5:
                 notes.append(f"gap {i + 1}: " + gate_note(g["ood_score"], g["gate_weight"], "the Hermite fill"))
     return InfillResult(samples=[(f"{stem}_filled", [out], gen)], summary=summary,
                         extra_files={f"{stem}_filled.npy": functools.partial(_save_npy, arr=pos)},

@@ -1,0 +1,126 @@
+"""Choose the CAE's motion matching (``model.match_k``, ``match_disp``, and the gate ``match_lo`` / ``match_hi``) on
+the validation subjects, through ``inbetween infill``'s own path (global joint error, root bounded as shipped).
+
+Each gap's fill (the run's, gated: its Hermite fill where the gate closes) is blended toward its matched training
+window (:mod:`inbetween_jax.models.cae.bank`) at the weights of :data:`~inbetween_jax.models.ood.BLEND_WEIGHTS`;
+:func:`~inbetween_jax.models.ood.calibrate_gate` picks the distance thresholds by the project's rule (every
+activity group and length at most 1.00x the fill, p90 <= 1.05x, max <= 1.5x, then the lowest mean).  The bank
+holds the ``fit-subjects`` files only (``inbetween build-bank`` writes the same).
+
+Each subject is also scored with the thresholds chosen on the other validation subjects ("leave one subject out").
+
+    python experiments/cae_motion_match.py RUN_DIR [--k 4,8] [--disp 0.05,0.25] [--departure 0.5] [--tempos 1]
+        [--mirror] [--split val-subjects] [--list]
+"""
+import argparse
+import os
+import collections
+import dataclasses
+
+import numpy as np
+
+from inbetween_jax.banks import scvae_bank
+from inbetween_jax.data import load_motions
+from inbetween_jax.data.activities import activity_group
+from inbetween_jax.evaluation.worst_case import summarise
+from inbetween_jax.geometry import forward_kinematics
+from inbetween_jax.metrics.steps import lift_offs
+from inbetween_jax.models.cae.bank import MatchBank, departure, match_gap, root_track
+from inbetween_jax.models.cae.features import body_frame_features, to_global
+from inbetween_jax.models.cae.infer import fill, load
+from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
+from inbetween_jax.models.ood import BLEND_WEIGHTS, calibrate_gate, gated_ratio
+from inbetween_jax.train.run import load_run
+
+p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+p.add_argument("run_dir")
+p.add_argument("--k", default="4,8")
+p.add_argument("--disp", default="0.05,0.25", help="weights of the root displacement and turn")
+p.add_argument("--split", default="val-subjects")
+p.add_argument("--seconds", default="1,2")
+p.add_argument("--tempos", default="1", help="the bank's clips also played at these speeds")
+p.add_argument("--mirror", action="store_true", help="the bank's clips' mirror images too")
+p.add_argument("--list", action="store_true", help="list every gap of the first config")
+p.add_argument("--departure", type=float, default=0.5,
+               help="matches departing further from the fill (bank.departure) are never used")
+a = p.parse_args()
+run = load_run(a.run_dir)
+model = load(run)
+j, feet = model.num_joints, model.skeleton.foot_joints()
+bank = MatchBank.from_transition_bank(scvae_bank(run, "cmu", "fit-subjects"), model.skeleton, model.normalizer, j,
+                                  tempos=[float(t) for t in a.tempos.split(",")], mirror=a.mirror)
+bound = float(model.cfg.model.root_bound) * 100
+configs = [(int(k), float(d)) for k in a.k.split(",") for d in a.disp.split(",")]
+records = collections.defaultdict(list)
+for m in load_motions("cmu", a.split):
+    gp = forward_kinematics(m.local_quats, m.local_pos, m.skeleton.parents)[1]
+    feats = body_frame_features(m)
+    x = model.normalizer(feats.features).T.astype(np.float32)
+    ref, yaw = root_track(feats.features, j, feats.ref0, feats.yaw0)
+    group = activity_group(str(m.source))
+    for sec in [float(s) for s in a.seconds.split(",")]:
+        g = int(round(sec * m.fps))
+        for lo in range(10, m.num_frames - g - 10, max(g, 30)):
+            fm = gap_frames(m.num_frames, [(lo, lo + g)])
+            mask = frame_mask_image(fm, j)
+            y = fill(model, x, mask)                                  # as shipped: gated
+            w = (np.arange(1, g + 1) / (g + 1))[:, None, None]
+            lin_err = np.linalg.norm(gp[lo - 1] + w * (gp[lo + g] - gp[lo - 1]) - gp[lo:lo + g], axis=-1).mean()
+            span = slice(lo - 1, lo + g + 1)
+
+            def positions(yy):
+                return to_global(yy, model.normalizer, j, feats.ref0, feats.yaw0, known_feats=feats.features,
+                                 frame_mask=fm, root_bound=bound)
+            base_pos = positions(y)
+            base_err = np.linalg.norm(base_pos[lo:lo + g] - gp[lo:lo + g], axis=-1).mean()
+            for k, disp in configs:
+                mf, dist = match_gap(bank, x * mask, ref, yaw, lo, lo + g, k, disp)
+                at, steps = [], []
+                for bw in BLEND_WEIGHTS:
+                    yy = y.copy()
+                    yy[:, lo:lo + g] += bw * (mf - y[:, lo:lo + g])
+                    pos = positions(yy)
+                    at.append(np.linalg.norm(pos[lo:lo + g] - gp[lo:lo + g], axis=-1).mean() / base_err)
+                    steps.append(float(lift_offs(pos[span], (feet[0], feet[2]))))
+                dep = departure(y[:, lo:lo + g], mf, feats.global_pos, lo, lo + g, model.normalizer, j)
+                records[(k, disp)].append({
+                    "subject": os.path.basename(str(m.source))[:2], "group": f"{group}/{g}", "at_one": at[-1], "score": dist, "departure": dep, "ratios_at": at if dep <= a.departure else [1.0] * len(at), "base_x_linear": base_err / lin_err,
+                    "steps": (steps if dep <= a.departure else [steps[0]] * len(steps), float(lift_offs(base_pos[span], (feet[0], feet[2]))),
+                              float(lift_offs(gp[span], (feet[0], feet[2]))))})
+for (k, disp), rs in records.items():
+    gate, summ = calibrate_gate([r["score"] for r in rs], [r["ratios_at"] for r in rs],
+                                groups=[r["group"] for r in rs])
+    wts = gate.weight([r["score"] for r in rs])
+    r = gated_ratio([r["ratios_at"] for r in rs], wts)
+    s = summarise(list(r))
+    lin = r * np.array([x["base_x_linear"] for x in rs])
+    print(f"k {k} disp {disp}: gate lo {gate.lo:.6f} hi {gate.hi:.6f} (limits met: {summ['meets_limits']}); "
+          f"{s['windows']} gaps x the fill: mean {s['mean']:.3f} median {s['median']:.3f} p90 {s['p90']:.3f} "
+          f"max {s['max']:.3f}; x linear {lin.mean():.3f} (fill alone "
+          f"{np.mean([x['base_x_linear'] for x in rs]):.3f}); open (w > 0.5) {np.mean(wts > 0.5):.2f}; "
+          f"ungated mean {np.mean([x['ratios_at'][-1] for x in rs]):.3f}")
+    # each subject scored with the thresholds chosen on the other four (how much the choice depends on them)
+    held = np.zeros(len(rs))
+    subjects = np.array([x["subject"] for x in rs])
+    for subj in sorted(set(subjects)):
+        out_ = subjects == subj
+        fit = [x for x, o in zip(rs, out_) if not o]
+        g_ = calibrate_gate([x["score"] for x in fit], [x["ratios_at"] for x in fit], groups=[x["group"] for x in fit])[0]
+        held[out_] = gated_ratio([x["ratios_at"] for x, o in zip(rs, out_) if o],
+                                 g_.weight([x["score"] for x, o in zip(rs, out_) if o]))
+    sh = summarise(list(held))
+    print(f"  leave one subject out: mean {sh['mean']:.3f} p90 {sh['p90']:.3f} max {sh['max']:.3f} "
+          f"(per subject {', '.join(f'{u} {held[subjects == u].mean():.3f}' for u in sorted(set(subjects)))})")
+    for grp in sorted({x["group"] for x in rs}):
+        sel = np.array([x["group"] == grp for x in rs])
+        near = [int(np.argmin(np.abs(np.asarray(BLEND_WEIGHTS) - w_))) for w_ in wts]
+        st = np.array([(x["steps"][0][i], *x["steps"][1:]) for x, i in zip(rs, near)])[sel]
+        print(f"  {grp:12s} n {sel.sum():3d} x the fill mean {r[sel].mean():.3f} max {r[sel].max():.3f}; "
+              f"open {np.mean(wts[sel] > 0.5):.2f}; lift-offs per gap gated {st[:, 0].mean():.2f} "
+              f"fill {st[:, 1].mean():.2f} capture {st[:, 2].mean():.2f}")
+
+if a.list:
+    print("the first config's gaps, nearest first: ratio to the fill with the match whole, departure, distance")
+    for x in sorted(records[configs[0]], key=lambda x: x["distance"]):
+        print(f"{x['at_one']:7.2f} departure {x['departure']:6.2f} distance {x['distance']:.4f} {x['subject']} "
+              f"{x['group']}")

@@ -1,0 +1,200 @@
+"""Motion matching for the CAE's gaps inside a file: the nearest training window, offset-blended onto the known
+frames, where one lies near enough.
+
+Beyond the paper; inference only (the trained network is the same with or without), off unless a run's config
+turns it on (``model.match_k`` > 0).  The bank is the S-CVAE's :class:`~inbetween_jax.models.scvae.bank.
+TransitionBank` format (``bank.npz`` in the run or shipped weights folder, written by ``inbetween build-bank``):
+the training clips' local rotations and root positions, turned into the CAE's features (body-frame joint
+positions and root velocities, normalised with the run's statistics) when loaded.
+
+For a gap ``[a, b)`` of a file, :func:`match_gap` compares the gap's context -- the feature columns of the known
+frames ``a - 1, a - 4, a - 8`` and ``b, b + 3, b + 7`` (:func:`~inbetween_jax.models.cae.gate.gap_context`) --
+and the root's floor displacement and turn from ``a - 1`` to ``b`` (in the body frame at ``a - 1``, metres and
+radians) with every training window of the same length.  The ``k`` nearest (mean squared difference per context
+number, displacement included with weight ``match_disp``) are each offset-blended onto the known frames (the
+difference at ``a - 1`` fading out linearly over the gap and the difference at ``b`` fading in; Kovar et al.'s
+transition blending) and averaged.  A gate on that distance, ``w = clip((hi - d) / (hi - lo), 0, 1)``
+(``match_lo`` / ``match_hi``), blends the match over the gap's fill: ``fill + w (match - fill)``.  A match whose
+body departs from the fill by more than ``match_departure`` times the body's own travel beside the gap
+(:func:`departure`) is not used at all: the distance alone let matches that walk through a gap where the body
+stands still (a jump in place) through when the thresholds were chosen without that subject.  Both are chosen on
+the validation subjects by ``experiments/cae_motion_match.py``.  Why: the network's fills stay at its Hermite base on
+motion it never saw (docs/results/gate.md), which glides instead of stepping; a walking window from the training
+motion, matched at both ends, steps.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from inbetween_jax.errors import UserError
+
+__all__ = ["BANK_FILE", "SWITCHES", "MatchBank", "bank_folder", "match_enabled", "match_gap", "departure", "match_weight",
+           "root_track"]
+
+BANK_FILE = "bank.npz"
+SWITCHES = ("model.match_k", "model.match_lo", "model.match_hi", "model.match_disp",
+            "model.match_departure")                                                   # inference only
+MARGIN = 8                     # known frames a gap's context needs on each side (gate.CONTEXT_FRAMES)
+STRIDE = 2                     # frames between the bank's candidate windows
+
+
+def bank_folder(run_dir: str) -> str:
+    """The folder whose ``bank.npz`` a CAE run uses: its own, or for a shipped folder whose ``run.json`` records
+    ``bank.shared_with`` (``inbetween build-bank`` found a byte-identical bank there), that sibling folder."""
+    import json
+    import os
+    if not os.path.isfile(os.path.join(run_dir, BANK_FILE)):
+        try:
+            with open(os.path.join(run_dir, "run.json")) as f:
+                shared = (json.load(f).get("bank") or {}).get("shared_with")
+        except (OSError, ValueError):
+            shared = None
+        if shared:
+            return os.path.join(os.path.dirname(os.path.normpath(run_dir)), shared)
+    return run_dir
+
+
+def match_enabled(model_cfg) -> bool:
+    return int(getattr(model_cfg, "match_k", 0)) > 0
+
+
+def root_track(features, num_joints: int, ref0, yaw0):
+    """(T, D) un-normalised CAE features -> the root's floor path (T, 2) and facing (T,) (integrated)."""
+    from inbetween_jax.models.cae.features import integrate_root, split_features
+    return integrate_root(split_features(np.asarray(features, np.float64), num_joints)[1], ref0, yaw0)
+
+
+def _displacement(ref, yaw, a, b) -> np.ndarray:
+    """(N, 3): the floor displacement from frame ``a - 1`` to ``b`` in the body frame at ``a - 1`` (metres, from
+    centimetres) and the turn (radians, wrapped)."""
+    from inbetween_jax.geometry.heading import rotate_about_up
+    d = rotate_about_up(ref[b] - ref[a - 1], -yaw[a - 1]) / 100.0
+    turn = (yaw[b] - yaw[a - 1] + np.pi) % (2 * np.pi) - np.pi
+    return np.concatenate([d, turn[:, None]], axis=1)
+
+
+@dataclasses.dataclass
+class MatchBank:
+    """Training motion in the CAE's space: ``clips``: per clip (D, T) float32 normalised features and its root
+    track (``ref`` (T, 2), ``yaw`` (T,)).  Candidate windows are indexed per gap length (:meth:`index`)."""
+    clips: list
+    tracks: list
+    _cache: dict = dataclasses.field(default_factory=dict, repr=False, compare=False)
+
+    @classmethod
+    def from_transition_bank(cls, bank, skeleton, normalizer, num_joints: int, tempos=(1.0,),
+                             mirror: bool = False) -> "MatchBank":
+        """The CAE view of a :class:`~inbetween_jax.models.scvae.bank.TransitionBank` on the run's skeleton;
+        ``tempos``: each clip also played at these speeds (resampled; 1.25 is faster, fewer frames);
+        ``mirror``: each clip's left-right mirror image too (:func:`~inbetween_jax.models.cae.features.
+        mirror_rows`).  Raises UserError (one line) for a bank on another skeleton or an unmirrorable rig."""
+        from inbetween_jax.geometry.kinematics import forward_kinematics, local_positions
+        from inbetween_jax.models.cae.features import mirror_rows, positions_to_features, smoothed_facing_yaw
+        if bank.num_joints != num_joints or tuple(bank.parents) != tuple(skeleton.parents):
+            raise UserError(f"motion bank: {bank.num_joints} joints on another skeleton than the run's "
+                            f"{num_joints}")
+        perm, sign = mirror_rows(skeleton) if mirror else (None, None)
+        clips, tracks = [], []
+        for s, e in zip(bank.clip_starts[:-1], bank.clip_starts[1:]):
+            lp = local_positions(bank.root_pos[s:e].astype(np.float64), bank.offsets)
+            gp = forward_kinematics(bank.local_quats[s:e].astype(np.float64), lp, bank.parents)[1]
+            yaw = np.unwrap(smoothed_facing_yaw(gp, skeleton))
+            feats = positions_to_features(gp, yaw).astype(np.float64)
+            for tempo in tempos:
+                f, ref, yw = _played_at(feats, gp[:, 0, [0, 2]].astype(np.float64), yaw, float(tempo))
+                if len(f) < 2 * MARGIN + 2:
+                    continue
+                variants = [(f, ref, yw)]
+                if mirror:
+                    variants.append((sign[None] * f[:, perm], ref * np.array([-1.0, 1.0]), -yw))
+                for fv, rv, yv in variants:
+                    clips.append(np.ascontiguousarray(normalizer(fv.astype(np.float32)).T.astype(np.float32)))
+                    tracks.append((rv, yv))
+        if not clips:
+            raise UserError("motion bank: no clip is long enough to match a gap in")
+        return cls(clips, tracks)
+
+    def index(self, length: int):
+        """``(contexts (N, C), squared norms (N,), displacements (N, 3), where (N, 2) [clip, start])`` of every
+        training window with a ``length``-frame gap and its context inside one clip; cached per length."""
+        if length not in self._cache:
+            from inbetween_jax.models.cae.gate import gap_context
+            ctx, disp, where = [], [], []
+            for i, (x, (ref, yaw)) in enumerate(zip(self.clips, self.tracks)):
+                s = np.arange(MARGIN, x.shape[1] - length - MARGIN, STRIDE)
+                if len(s) == 0:
+                    continue
+                ctx.append(gap_context(np.broadcast_to(x, (len(s),) + x.shape), s, s + length))
+                disp.append(_displacement(ref, yaw, s, s + length))
+                where.append(np.stack([np.full(len(s), i), s], 1))
+            if not ctx:
+                self._cache[length] = None
+            else:
+                c = np.concatenate(ctx).astype(np.float32)
+                self._cache[length] = (c, np.sum(c.astype(np.float64) ** 2, 1), np.concatenate(disp),
+                                       np.concatenate(where))
+        return self._cache[length]
+
+
+def _played_at(feats, ref, yaw, tempo: float):
+    """One clip's features (T, D), floor path (T, 2) and unwrapped facing (T,) played ``tempo`` times as fast:
+    linearly resampled in time; the per-frame root velocities (the last three rows) scale with the tempo."""
+    if tempo == 1.0:
+        return feats, ref, yaw
+    t = np.arange(0.0, len(feats) - 1 + 1e-9, tempo)
+    src = np.arange(len(feats))
+    f = np.stack([np.interp(t, src, col) for col in feats.T], 1)
+    f[:, -3:] *= tempo
+    return (f, np.stack([np.interp(t, src, ref[:, 0]), np.interp(t, src, ref[:, 1])], 1), np.interp(t, src, yaw))
+
+
+def match_gap(bank: MatchBank, x_masked, ref, yaw, a: int, b: int, k: int, disp_weight: float = 1.0):
+    """The matched fill of gap ``[a, b)`` of one normalised clip image ``x_masked`` (D, T) whose root track is
+    ``ref`` (T, 2) / ``yaw`` (T,) (known frames only are read).  Returns ``(fill (D, b - a), distance)``, or
+    ``(None, inf)`` when the gap lacks :data:`MARGIN` known frames on a side or no training window is that long."""
+    from inbetween_jax.models.cae.gate import gap_context
+    x = np.asarray(x_masked, np.float32)
+    g = b - a
+    if a < MARGIN or b + MARGIN > x.shape[1]:
+        return None, float("inf")
+    idx = bank.index(g)
+    if idx is None:
+        return None, float("inf")
+    ctx, sq, disp, where = idx
+    q = gap_context(x[None], a, b)[0].astype(np.float64)
+    qd = _displacement(np.asarray(ref, np.float64), np.asarray(yaw, np.float64), np.array([a]), np.array([b]))[0]
+    d = (np.maximum(sq - 2.0 * (ctx @ q.astype(np.float32)) + q @ q, 0.0) / len(q)
+         + disp_weight * np.sum((disp - qd) ** 2, 1))
+    best = np.argsort(d)[:max(int(k), 1)]
+    w = (np.arange(1, g + 1) / (g + 1))[None]
+    fills = []
+    for i in best:
+        clip, s = where[i]
+        c = bank.clips[clip][:, s - 1:s + g + 1]
+        d0, d1 = x[:, a - 1] - c[:, 0], x[:, b] - c[:, -1]
+        fills.append(c[:, 1:-1] + (1 - w) * d0[:, None] + w * d1[:, None])
+    return np.mean(fills, 0).astype(np.float32), float(d[best[0]])
+
+
+def departure(fill, matched, known_pos, a: int, b: int, normalizer, num_joints: int) -> float:
+    """How far a matched fill departs from the gap's fill against how far the body moves beside the gap: the mean
+    joint distance (body frame) between ``matched`` and ``fill`` (normalised, (D, b - a)) over the mean joint
+    travel of the known global positions ``known_pos`` (T, J, 3) from ``a - 8`` to ``a - 1`` and from ``b`` to
+    ``b + 7`` (at least 1 unit).  A walk moves 20 cm or so there and its good matches depart by a fifth of that;
+    a body standing still beside the gap moves ~0, and any match that moves it scores high."""
+    from inbetween_jax.models.cae.features import body_positions
+    dev = np.linalg.norm(body_positions(matched, normalizer, num_joints)
+                         - body_positions(fill, normalizer, num_joints), axis=-1).mean()
+    p = np.asarray(known_pos, np.float64)
+    travel = 0.5 * (np.linalg.norm(p[a - 1] - p[a - MARGIN], axis=-1).mean()
+                    + np.linalg.norm(p[b + MARGIN - 1] - p[b], axis=-1).mean())
+    return float(dev / max(travel, 1.0))
+
+
+def match_weight(distance: float, lo: float, hi: float) -> float:
+    """The matched fill's blend weight: 1 at a distance <= ``lo``, 0 at >= ``hi`` (and for no match)."""
+    if not np.isfinite(distance):
+        return 0.0
+    return float(np.clip((hi - distance) / max(hi - lo, 1e-12), 0.0, 1.0))

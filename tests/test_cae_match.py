@@ -1,0 +1,164 @@
+"""The CAE's motion matching inside a file (:mod:`inbetween_jax.models.cae.bank`) on real capture: a gap cut from
+a bank clip finds that clip and gives its frames back; tempo and mirror copies; the gate's weight; the bank file's
+errors; and the shipped weights' wiring through ``process_motion`` on a validation subject's walk."""
+from __future__ import annotations
+
+import dataclasses
+import os
+import shutil
+
+import numpy as np
+import pytest
+
+from inbetween_jax.data import load_motions
+from inbetween_jax.models.cae.bank import MARGIN, MatchBank, _played_at, match_gap, match_weight, root_track
+from inbetween_jax.models.cae.features import body_frame_features, mirror_rows
+from inbetween_jax.models.scvae.bank import TransitionBank
+from inbetween_jax.train.run import RunError
+
+
+@pytest.fixture(scope="module")
+def shipped():
+    from inbetween_jax.models.cae.infer import load
+    from inbetween_jax.shipped import shipped_run
+    return load(shipped_run("cae"))
+
+
+@pytest.fixture(scope="module")
+def motions():
+    return load_motions("embedded", "train")
+
+
+def _query(model, motion, a, b):
+    feats = body_frame_features(motion)
+    x = model.normalizer(feats.features).T.astype(np.float32)
+    mask = np.ones_like(x)
+    mask[:, a:b] = 0.0
+    ref, yaw = root_track(feats.features, model.num_joints, feats.ref0, feats.yaw0)
+    return x, x * mask, ref, yaw
+
+
+def test_played_at_resamples_time_and_scales_velocities():
+    t = np.arange(41, dtype=np.float64)
+    feats = np.stack([t, 2 * t, np.ones(41), np.ones(41), np.full(41, 3.0)], 1)   # two "position" rows, then velocities
+    ref, yaw = np.stack([t, -t], 1), 0.1 * t
+    f, r, y = _played_at(feats, ref, yaw, 2.0)
+    assert len(f) == 21
+    np.testing.assert_allclose(f[:, 1], 4 * np.arange(21))                # every second frame
+    np.testing.assert_allclose(f[:, -3:], [[2.0, 2.0, 6.0]] * 21)         # per-frame velocities twice as large
+    np.testing.assert_allclose(r[:, 0], 2 * np.arange(21))
+    np.testing.assert_allclose(y, 0.2 * np.arange(21))
+    same = _played_at(feats, ref, yaw, 1.0)
+    assert same[0] is feats
+
+
+def test_match_weight_ramp():
+    assert match_weight(0.1, 0.2, 0.4) == 1.0
+    assert match_weight(0.3, 0.2, 0.4) == pytest.approx(0.5)
+    assert match_weight(0.5, 0.2, 0.4) == 0.0
+    assert match_weight(float("inf"), 0.2, 0.4) == 0.0
+
+
+def test_a_gap_cut_from_a_bank_clip_gets_that_clip_back(shipped, motions):
+    m = motions[0]
+    tb = TransitionBank.from_motions([m], m.skeleton.forward_axis())
+    bank = MatchBank.from_transition_bank(tb, shipped.skeleton, shipped.normalizer, shipped.num_joints)
+    a = MARGIN + 2 * 10                                  # a candidate start (stride 2)
+    b = a + 24
+    x, xm, ref, yaw = _query(shipped, m, a, b)
+    fill, dist = match_gap(bank, xm, ref, yaw, a, b, k=1)
+    assert dist < 1e-6
+    np.testing.assert_allclose(fill, x[:, a:b], atol=2e-3)
+    # a gap whose context is not there (too near the clip's start) is not matched
+    assert match_gap(bank, xm, ref, yaw, MARGIN - 1, MARGIN + 20, k=1) == (None, float("inf"))
+
+
+def test_mirror_copy_matches_the_mirrored_motion(shipped, motions):
+    m = motions[1]
+    tb = TransitionBank.from_motions([m], m.skeleton.forward_axis())
+    plain = MatchBank.from_transition_bank(tb, shipped.skeleton, shipped.normalizer, shipped.num_joints)
+    both = MatchBank.from_transition_bank(tb, shipped.skeleton, shipped.normalizer, shipped.num_joints, mirror=True)
+    assert len(both.clips) == 2 * len(plain.clips)
+    perm, sign = mirror_rows(shipped.skeleton)
+    raw = shipped.normalizer.inverse(both.clips[0].T.astype(np.float64))
+    mirrored = shipped.normalizer.inverse(both.clips[1].T.astype(np.float64))
+    np.testing.assert_allclose(mirrored, sign[None] * raw[:, perm], atol=1e-3)
+    # the mirror's gap (same frames) finds the mirror copy, not the original
+    a, b = MARGIN + 10, MARGIN + 40
+    x = both.clips[1]
+    mask = np.ones_like(x)
+    mask[:, a:b] = 0
+    fill, dist = match_gap(both, x * mask, *both.tracks[1], a, b, k=1)
+    assert dist < 1e-6
+    np.testing.assert_allclose(fill, x[:, a:b], atol=2e-3)
+    fill_plain, dist_plain = match_gap(plain, x * mask, *both.tracks[1], a, b, k=1)
+    assert dist_plain > 100 * max(dist, 1e-9)
+
+
+def test_shipped_walk_gap_follows_a_training_walk(shipped):
+    """A validation subject's walk (never in the bank): the matched fill is used, is recorded per gap, and steps
+    more than the fill without it."""
+    from inbetween_jax.metrics.steps import lift_offs
+    from inbetween_jax.models.cae.infer import process_motion
+    assert shipped.match is not None and shipped.cfg.model.match_k > 0, "the shipped CAE matches gaps"
+    walk = [m for m in load_motions("cmu", "val-subjects") if os.path.basename(str(m.source)) == "12_01.bvh"][0]
+    gap = (40, 70)
+    res = process_motion(shipped, walk, [gap])
+    row = res["gaps_ood"][0]
+    assert row["gap"] == list(gap) and row["match_weight"] > 0.5 and row["match_distance"] < shipped.cfg.model.match_lo
+    off = dataclasses.replace(shipped.cfg, model=dataclasses.replace(shipped.cfg.model, match_k=0))
+    plain = process_motion(_with_cfg(shipped, off), walk, [gap])
+    feet = shipped.skeleton.foot_joints()
+    span = slice(gap[0] - 1, gap[1] + 1)
+    steps = [float(lift_offs(r["positions"][span], (feet[0], feet[2]))) for r in (res, plain)]
+    assert steps[0] > steps[1]
+    truth = walk.global_positions()[gap[0]:gap[1]]
+    err = [np.linalg.norm(r["positions"][gap[0]:gap[1]] - truth, axis=-1).mean() for r in (res, plain)]
+    assert err[0] < err[1]
+
+
+def _with_cfg(model, cfg):
+    import copy
+    out = copy.copy(model)
+    out.cfg = cfg
+    return out
+
+
+def test_match_without_a_bank_file_is_one_line(tmp_path):
+    from inbetween_jax.models.cae.infer import load
+    from inbetween_jax.shipped import shipped_dir
+    from inbetween_jax.train.run import load_run
+    src = shipped_dir("cae")
+    dst = tmp_path / "cae"
+    shutil.copytree(src, dst)
+    if (dst / "bank.npz").exists():
+        os.remove(dst / "bank.npz")
+    import json
+    meta = json.loads((dst / "run.json").read_text())
+    meta["config"]["model"]["match_k"] = 4
+    (dst / "run.json").write_text(json.dumps(meta))
+    with pytest.raises(RunError, match="model.match_k needs bank.npz"):
+        load(load_run(str(dst)))
+
+
+def test_build_bank_shares_the_scvae_bank_beside_it(tmp_path):
+    """The shipped CAE's bank is byte-identical to the S-CVAE's beside it: build-bank records it instead of storing
+    it twice, and the CAE loads it from there; alone, the folder gets its own file."""
+    import json
+    from inbetween_jax.banks import write_bank
+    from inbetween_jax.models.cae.infer import load
+    from inbetween_jax.shipped import shipped_dir
+    from inbetween_jax.train.run import load_run
+    root = tmp_path / "w"
+    for m in ("cae", "scvae"):
+        shutil.copytree(shipped_dir(m), root / m)
+    out = write_bank(str(root / "cae"), switches=["model.match_k=8"])
+    assert not (root / "cae" / "bank.npz").exists() and out["path"] == str(root / "scvae" / "bank.npz")
+    assert json.loads((root / "cae" / "run.json").read_text())["bank"]["shared_with"] == "scvae"
+    model = load(load_run(str(root / "cae")))
+    assert model.match is not None and len(model.match.clips) == 171
+    alone = tmp_path / "alone"
+    shutil.copytree(root / "cae", alone / "cae")
+    write_bank(str(alone / "cae"))
+    assert (alone / "cae" / "bank.npz").exists()
+    assert "shared_with" not in json.loads((alone / "cae" / "run.json").read_text())["bank"]
