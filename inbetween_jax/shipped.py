@@ -34,7 +34,7 @@ INFERENCE_SWITCHES = {"interaction": ("model.refiner", "model.latent_scale", "mo
                       "scvae": ("model.search", "model.bank_k", "model.bank_weight", "model.bank_tau", "model.ood_gate",
                                 "model.motion_temperature", "model.motion_spread", "model.bank_sample_weight",
                                 "model.bank_sample_gated", "model.context_base", "model.context_damping",
-                                "model.context_max_turn", "model.context_max_step"),
+                                "model.context_max_turn", "model.context_max_step", "model.timing_spread"),
                       "cae": ("model.mirror_average", "model.ood_gate", "model.root_bound", "model.match_k",
                               "model.match_lo", "model.match_hi", "model.match_disp", "model.match_departure")}
 # Per model: the key-path prefixes of the train state that ``infer.load`` / inference use.

@@ -192,7 +192,7 @@ def bank_samples(bank: TransitionBank, cfg, windows, n_past: int, n_trans: int, 
     the gate's per window)."""
     k0, k1 = n_past - 1, n_past + n_trans
     return bank_sample_blend(bank, windows.local_quats[:, k0], windows.root_pos[:, k0], windows.local_quats[:, k1],
-                             windows.root_pos[:, k1], q, r, sample_weight(cfg, gate_weight))
+                             windows.root_pos[:, k1], q, r, sample_weight(cfg, gate_weight), cfg.timing_spread)
 
 
 def bank_transitions(bank: TransitionBank, cfg, windows, n_past: int, n_trans: int):
@@ -288,7 +288,9 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
         q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
     if trained.bank is not None and sampled_mode(m, num_samples):   # sample s >= 1: the bank's s-th nearest
         mid_q, mid_r = bank_sample_blend(trained.bank, qs[None], roots[:1], qe[None], roots[1:], q[:, None, 1:-1],
-                                         r[:, None, 1:-1], sample_weight(m, gated.get("gate_weight")))
+                                         r[:, None, 1:-1], sample_weight(m, gated.get("gate_weight")),
+                                         m.timing_spread if ctx == "none" else 0.0)    # inside a clip the sides
+                                                                                         # pin the timing
         q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
     q[:, 0], r[:, 0], q[:, -1], r[:, -1] = qs, roots[0], qe, roots[1]                 # exact keyframes
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
@@ -389,11 +391,16 @@ def infill(args, run):
     from inbetween_jax.evaluation.samples import sample_spread
     spread = sample_spread([m[0] for _, m, _ in samples])
     blends = [0.0] + [round(toward, 4)] * (args.samples - 1)     # sample 0 is the fill
+    from inbetween_jax.models.scvae.bank import timing_amplitudes
+    timing = (timing_amplitudes(args.samples, min(m.timing_spread, 0.95)) if sampling and context == "none"
+              else np.zeros(args.samples))                       # retimed samples (bank.retimed): > 0 earlier
     return InfillResult(samples=samples, summary={**keyframes, "frames": args.frames,
                                                   "samples": args.samples, "step": trained.step,
                                                   "past_frame": past, "context": context, **gated,
                                                   **spread,
-                                                  "samples_ood": [dict(gated, sample=n, toward_captured=b) for n, b in
-                                                                  zip(sample_names(args.samples), blends)]
+                                                  "samples_ood": [dict(gated, sample=n, toward_captured=b,
+                                                                       timing_shift=round(float(a), 4))
+                                                                  for n, b, a in zip(sample_names(args.samples),
+                                                                                     blends, timing)]
                                                   if gated else []},
                         notes=notes)
