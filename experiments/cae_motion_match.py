@@ -10,7 +10,7 @@ holds the ``fit-subjects`` files only (``inbetween build-bank`` writes the same)
 Each subject is also scored with the thresholds chosen on the other validation subjects ("leave one subject out").
 
     python experiments/cae_motion_match.py RUN_DIR [--k 4,8] [--disp 0.05,0.25] [--departure 0.5] [--tempos 1]
-        [--mirror] [--split val-subjects] [--list]
+        [--mirror] [--split val-subjects] [--list] [--figure docs/figures/cae_match_calibration.png]
 """
 import argparse
 import os
@@ -41,6 +41,7 @@ p.add_argument("--seconds", default="1,2")
 p.add_argument("--tempos", default="1", help="the bank's clips also played at these speeds")
 p.add_argument("--mirror", action="store_true", help="the bank's clips' mirror images too")
 p.add_argument("--list", action="store_true", help="list every gap of the first config")
+p.add_argument("--figure", default=None, help="write the first config's calibration figure (PNG) here")
 p.add_argument("--departure", type=float, default=0.5,
                help="matches departing further from the fill (bank.departure) are never used")
 a = p.parse_args()
@@ -87,8 +88,9 @@ for m in load_motions("cmu", a.split):
                     "subject": os.path.basename(str(m.source))[:2], "group": f"{group}/{g}", "at_one": at[-1], "score": dist, "departure": dep, "ratios_at": at if dep <= a.departure else [1.0] * len(at), "base_x_linear": base_err / lin_err,
                     "steps": (steps if dep <= a.departure else [steps[0]] * len(steps), float(lift_offs(base_pos[span], (feet[0], feet[2]))),
                               float(lift_offs(gp[span], (feet[0], feet[2]))))})
+gates = {}
 for (k, disp), rs in records.items():
-    gate, summ = calibrate_gate([r["score"] for r in rs], [r["ratios_at"] for r in rs],
+    gate, summ = gates[(k, disp)] = calibrate_gate([r["score"] for r in rs], [r["ratios_at"] for r in rs],
                                 groups=[r["group"] for r in rs])
     wts = gate.weight([r["score"] for r in rs])
     r = gated_ratio([r["ratios_at"] for r in rs], wts)
@@ -121,6 +123,32 @@ for (k, disp), rs in records.items():
 
 if a.list:
     print("the first config's gaps, nearest first: ratio to the fill with the match whole, departure, distance")
-    for x in sorted(records[configs[0]], key=lambda x: x["distance"]):
-        print(f"{x['at_one']:7.2f} departure {x['departure']:6.2f} distance {x['distance']:.4f} {x['subject']} "
+    for x in sorted(records[configs[0]], key=lambda x: x["score"]):
+        print(f"{x['at_one']:7.2f} departure {x['departure']:6.2f} distance {x['score']:.4f} {x['subject']} "
               f"{x['group']}")
+
+if a.figure:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from inbetween_jax.viz_frames import save_atomic
+    rs = records[configs[0]]
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    for ax, key, label, limit in ((axes[0], "score", "match distance (gate: lo / hi)", None),
+                                  (axes[1], "departure", "departure from the fill / body travel beside the gap",
+                                   a.departure)):
+        for used, colour, name in ((True, "tab:blue", "departure <= limit"), (False, "tab:red", "departure > limit")):
+            pts = [x for x in rs if (x["departure"] <= a.departure) == used]
+            ax.scatter([x[key] for x in pts], [x["at_one"] for x in pts], s=12, c=colour, label=name)
+        ax.axhline(1.0, color="k", lw=0.8)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel(label)
+        for x_ in ([limit] if limit is not None else [gates[configs[0]][0].lo, gates[configs[0]][0].hi]):
+            ax.axvline(x_, color="tab:red", ls="--", lw=0.8)
+    axes[0].set_ylabel("error with the match whole / the fill's")
+    axes[0].legend(fontsize=8)
+    fig.suptitle(f"CAE motion matching, validation subjects ({len(rs)} gaps, k {configs[0][0]}, disp {configs[0][1]})")
+    fig.tight_layout()
+    save_atomic(a.figure, lambda f: fig.savefig(f, format="png", dpi=110))
+    print("wrote", a.figure)

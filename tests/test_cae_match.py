@@ -162,3 +162,13 @@ def test_build_bank_shares_the_scvae_bank_beside_it(tmp_path):
     write_bank(str(alone / "cae"))
     assert (alone / "cae" / "bank.npz").exists()
     assert "shared_with" not in json.loads((alone / "cae" / "run.json").read_text())["bank"]
+
+
+def test_the_bank_keeps_a_few_gap_lengths_only(shipped, motions):
+    from inbetween_jax.models.cae.bank import CACHED_LENGTHS
+    m = motions[0]
+    tb = TransitionBank.from_motions([m], m.skeleton.forward_axis())
+    bank = MatchBank.from_transition_bank(tb, shipped.skeleton, shipped.normalizer, shipped.num_joints)
+    for length in range(10, 10 + CACHED_LENGTHS + 2):
+        assert bank.index(length)[0].shape[0] > 0
+    assert len(bank._cache) == CACHED_LENGTHS and 10 not in bank._cache and 11 not in bank._cache

@@ -38,6 +38,7 @@ SWITCHES = ("model.match_k", "model.match_lo", "model.match_hi", "model.match_di
             "model.match_departure")                                                   # inference only
 MARGIN = 8                     # known frames a gap's context needs on each side (gate.CONTEXT_FRAMES)
 STRIDE = 2                     # frames between the bank's candidate windows
+CACHED_LENGTHS = 8             # gap lengths whose candidate contexts are kept
 
 
 def bank_folder(run_dir: str) -> str:
@@ -118,9 +119,14 @@ class MatchBank:
 
     def index(self, length: int):
         """``(contexts (N, C), squared norms (N,), displacements (N, 3), where (N, 2) [clip, start])`` of every
-        training window with a ``length``-frame gap and its context inside one clip; cached per length."""
-        if length not in self._cache:
+        training window with a ``length``-frame gap and its context inside one clip; cached for the
+        :data:`CACHED_LENGTHS` lengths used last."""
+        if length in self._cache:
+            self._cache[length] = self._cache.pop(length)              # most recently used last
+        else:
             from inbetween_jax.models.cae.gate import gap_context
+            while len(self._cache) >= CACHED_LENGTHS:                   # about 45 MB per length for CMU
+                self._cache.pop(next(iter(self._cache)))
             ctx, disp, where = [], [], []
             for i, (x, (ref, yaw)) in enumerate(zip(self.clips, self.tracks)):
                 s = np.arange(MARGIN, x.shape[1] - length - MARGIN, STRIDE)
