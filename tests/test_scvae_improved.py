@@ -55,7 +55,7 @@ def test_untrained_residual_model_is_exactly_slerp_through_the_stitch(setup):
     res = M.rollout(params_for(cfg, data), cfg.model, stats, start, target, MAXLEN, jax.random.key(3), MAXLEN)
     q, r = M.interpolation_path(start, target, MAXLEN, MAXLEN)
     out_q = np.asarray(res["out"]["q"])
-    np.testing.assert_allclose(out_q, np.asarray(M.align_sign(q, res["out"]["q"])), atol=2e-6)
+    np.testing.assert_allclose(out_q, np.asarray(M.quat_align(q, res["out"]["q"])), atol=2e-6)
     np.testing.assert_allclose(np.asarray(res["out"]["r"]), np.asarray(r), atol=1e-4)
     # the paper's decoder is not: it integrates its own velocities from the start frame
     plain = M.rollout(params_for(TINY, data), TINY.model, stats, start, target, MAXLEN, jax.random.key(3), MAXLEN)

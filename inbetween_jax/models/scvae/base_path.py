@@ -13,7 +13,7 @@ import jax.numpy as jnp
 
 from inbetween_jax.baselines.velocity_interpolation import velocity_offsets
 from inbetween_jax.geometry import quat_mul, quat_slerp
-from inbetween_jax.models.scvae.features import align_sign
+from inbetween_jax.geometry.quaternion import quat_align
 
 __all__ = ["interpolation_path", "base_path"]
 
@@ -22,7 +22,7 @@ def interpolation_path(start: dict, target: dict, length, max_length: int):
     """Slerp of local quaternions and lerp of the root between the keyframes at times 0..max_length
     (times >= length hold the target).  Returns q (B, T1, J, 4), r (B, T1, 3), T1 = max_length + 1."""
     w = jnp.clip(jnp.arange(max_length + 1, dtype=jnp.float32) / jnp.maximum(length, 1).astype(jnp.float32), 0, 1)
-    q = quat_slerp(start["q"][:, None], align_sign(target["q"], start["q"])[:, None], w[None, :, None])
+    q = quat_slerp(start["q"][:, None], quat_align(target["q"], start["q"])[:, None], w[None, :, None])
     r = start["r"][:, None] + w[None, :, None] * (target["r"] - start["r"])[:, None]
     return q, r
 
@@ -40,6 +40,6 @@ def base_path(start: dict, target: dict, length, max_length: int, velocity: bool
     q, r = interpolation_path(start, target, length, max_length)
     if not (velocity and "qp" in start and "v" in start):
         return q, r
-    dq, dr = velocity_offsets(start["qp"], start["q"], align_sign(target["q"], start["q"]), start["r"] - start["v"],
+    dq, dr = velocity_offsets(start["qp"], start["q"], quat_align(target["q"], start["q"]), start["r"] - start["v"],
                               start["r"], target["r"], length, max_length, damping)
     return quat_mul(q, dq), r + dr

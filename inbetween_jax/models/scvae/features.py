@@ -45,11 +45,6 @@ def state_features(f: dict, stats: dict):
     return jnp.concatenate([f["q"].reshape(b, -1), f["v"] / stats["v_std"], f["c"]], axis=-1)
 
 
-def align_sign(q, ref):
-    """Flip quaternions q (..., 4) into the hemisphere of ref (..., 4)."""
-    return jnp.where(jnp.sum(q * ref, -1, keepdims=True) < 0, -q, q)
-
-
 def offset_features(cur: dict, tgt_q, tgt_r, stats: dict):
     """(B, 3+4J): root-position offset (scaled) and element-wise local-quaternion offset to the target."""
     b = cur["q"].shape[0]
@@ -176,11 +171,11 @@ def past_frame_inputs(start: dict, yaw, q0) -> dict:
     frame's local quaternions, turned into the canonical space (``yaw``: canonical -> world root rotation) and
     sign-aligned to the canonical start keyframe ``q0`` (J, 4), as consecutive training frames are."""
     from inbetween_jax.data.user_input import check_unit_quats
-    from inbetween_jax.geometry import quat_inv, quat_mul, quat_rotate
+    from inbetween_jax.geometry.quaternion import quat_align, quat_inv, quat_mul, quat_rotate
     qp = np.array(check_unit_quats(start["qp"], "start's previous frame q"), np.float64)
     inv = quat_inv(np.asarray(yaw, np.float64))
     qp[0] = quat_mul(inv, qp[0])
-    qp = np.where(np.sum(qp * np.asarray(q0, np.float64), -1, keepdims=True) < 0, -qp, qp)
+    qp = quat_align(qp, np.asarray(q0, np.float64))
     v = quat_rotate(inv, np.asarray(start["r"], np.float64) - np.asarray(start["rp"], np.float64))
     if not np.all(np.isfinite(v)):
         raise ValueError(f"start's previous frame r: expected 3 finite numbers, got {start['rp']!r}")

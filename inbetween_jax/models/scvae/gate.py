@@ -46,10 +46,10 @@ def training_contexts(windows, forward_axis, lengths=(5, 50), per_window: int = 
 
 def slerp_base(q0, r0, q1, r1, n_frames: int):
     """Slerp / lerp between keyframes: q (B, n, J, 4), r (B, n, 3) for the n frames strictly between them."""
-    from inbetween_jax.geometry import quat_slerp
+    from inbetween_jax.geometry.quaternion import quat_align, quat_slerp
     w = (np.arange(1, n_frames + 1) / (n_frames + 1))
     q0, q1 = np.asarray(q0, np.float64), np.asarray(q1, np.float64)
-    q1 = np.where(np.sum(q0 * q1, -1, keepdims=True) < 0, -q1, q1)
+    q1 = quat_align(q1, q0)
     q = quat_slerp(q0[:, None], q1[:, None], w[None, :, None])
     r = np.asarray(r0, np.float64)[:, None] + w[None, :, None] * (np.asarray(r1, np.float64) - r0)[:, None]
     return q, r

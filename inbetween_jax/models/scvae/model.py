@@ -19,10 +19,11 @@ import jax
 import jax.numpy as jnp
 
 from inbetween_jax.geometry import quat_normalize
+from inbetween_jax.geometry.quaternion import quat_align
 from inbetween_jax.models.scvae import layers as nn
 from inbetween_jax.models.scvae import motion_latent as ML
 from inbetween_jax.models.scvae.base_path import base_path, interpolation_path  # noqa: F401 (re-exported)
-from inbetween_jax.models.scvae.features import (PHASE_DIM, align_sign, dims, offset_features, reverse_time,
+from inbetween_jax.models.scvae.features import (PHASE_DIM, dims, offset_features, reverse_time,
                                                  state_features)
 
 
@@ -83,7 +84,7 @@ def encode(p: dict, cfg, carry, cur: dict, tgt: dict, tta, gamma, key, stats: di
     offset_emb (B, O)).  ``taps`` / ``rec``:
     deferred weight gradients of the LSTM (see :func:`rollout`); the matmul inputs are stored in ``rec``.
     """
-    tgt_q = align_sign(tgt["q"], cur["q"])
+    tgt_q = quat_align(tgt["q"], cur["q"])
     b = cur["q"].shape[0]
     emb = nn.tta_embedding(jnp.minimum(tta, cfg.tta_max), cfg.enc_out, cfg.tta_basis)
     emb0 = nn.tta_embedding(jnp.zeros_like(tta), cfg.enc_out, cfg.tta_basis)
@@ -139,7 +140,7 @@ def decode(p: dict, cfg, carry, z, embs: tuple, cur: dict, stats: dict, base=Non
     dq = out[:, :4 * j].reshape(b, j, 4)
     c = jax.nn.sigmoid(out[:, 4 * j + 3:])
     if cfg.residual:
-        q = quat_normalize(align_sign(base["q"], cur["q"]) + dq)
+        q = quat_normalize(quat_align(base["q"], cur["q"]) + dq)
         r = base["r"] + out[:, 4 * j:4 * j + 3] * stats["off_std"]
         return new_carry, {"q": q, "r": r, "v": r - cur["r"], "c": c}
     v = out[:, 4 * j:4 * j + 3] * stats["v_std"]
@@ -291,7 +292,7 @@ def seam_mismatch(fwd: dict, bwd: dict, length, h, k, stats: dict):
     steps = fwd["q"].shape[1]
     t = jnp.arange(1, steps + 1)
     bi = jnp.clip(length - 1 - t, 0, steps - 1)
-    bq = align_sign(_gather_time(bwd["q"], bi), fwd["q"])
+    bq = quat_align(_gather_time(bwd["q"], bi), fwd["q"])
     d = (jnp.mean(jnp.abs(fwd["q"] - bq), axis=(-1, -2))
          + jnp.mean(jnp.abs(fwd["r"] - _gather_time(bwd["r"], bi)), -1) / stats["pos_unit"])
     mask = ((t >= h - k + 1) & (t <= h + k)).astype(d.dtype)
@@ -316,7 +317,7 @@ def stitch(start: dict, target: dict, fwd: dict, bwd: dict, length, h, k, max_le
     bi = jnp.clip(length - 1 - t, 0, steps - 1)
     w = jnp.clip((t - (h - k)).astype(jnp.float32) / (2 * k + 1).astype(jnp.float32), 0.0, 1.0)
     fq, bq = _gather_time(fwd["q"], fi), _gather_time(bwd["q"], bi)
-    bq = align_sign(bq, fq)
+    bq = quat_align(bq, fq)
     wq = w[None, :, None, None]
     q = quat_normalize((1 - wq) * fq + wq * bq)
     wr = w[None, :, None]

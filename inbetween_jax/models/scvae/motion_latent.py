@@ -26,7 +26,8 @@ import jax
 import jax.numpy as jnp
 
 from inbetween_jax.models.scvae import layers as nn
-from inbetween_jax.models.scvae.features import align_sign, dims
+from inbetween_jax.geometry.quaternion import quat_align
+from inbetween_jax.models.scvae.features import dims
 
 __all__ = ["init_motion_nets", "time_features", "posterior", "prior", "gaussian_kl", "motion_kl_terms",
            "draw", "spread_draws", "prior_draws"]
@@ -65,7 +66,7 @@ def posterior(p: dict, stats: dict, gt: dict, base_q, base_r, length):
     target); base_q / base_r: the residual base path at the same times.  Frames 1..L-1 are pooled."""
     b, t1, j = gt["q"].shape[:3]
     t = jnp.arange(t1)
-    dq = (gt["q"] - align_sign(base_q, gt["q"])).reshape(b, t1, 4 * j)
+    dq = (gt["q"] - quat_align(base_q, gt["q"])).reshape(b, t1, 4 * j)
     dr = (gt["r"] - base_r) / stats["off_std"]
     tf = jnp.broadcast_to(time_features(t, length), (b, t1, 2 * NUM_TIME_FREQS))
     h = nn.mlp(p["post_frame"], jnp.concatenate([dq, dr, gt["c"], tf], -1), final_act=True)     # (B, T1, H)
@@ -78,7 +79,7 @@ def prior(p: dict, stats: dict, start: dict, target: dict, length, tta_max: int)
     """p(m | keyframes): (mu, log-variance), each (B, M), from both keyframes' local quaternions, the root's
     offset between them, the start's contacts and the gap length."""
     b = start["q"].shape[0]
-    tq = align_sign(target["q"], start["q"])
+    tq = quat_align(target["q"], start["q"])
     off = (target["r"] - start["r"]) / stats["off_std"]
     lf = jnp.broadcast_to(time_features(length, tta_max), (b, 2 * NUM_TIME_FREQS))
     x = jnp.concatenate([start["q"].reshape(b, -1), tq.reshape(b, -1), off, start["c"], lf], -1)
