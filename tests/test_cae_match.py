@@ -172,3 +172,21 @@ def test_the_bank_keeps_a_few_gap_lengths_only(shipped, motions):
     for length in range(10, 10 + CACHED_LENGTHS + 2):
         assert bank.index(length)[0].shape[0] > 0
     assert len(bank._cache) == CACHED_LENGTHS and 10 not in bank._cache and 11 not in bank._cache
+
+
+def test_infill_says_which_gaps_follow_training_motion(tmp_path, capsys):
+    """The CLI on a validation subject's raw 120 Hz walk: the first gap follows a match (infill.json records it),
+    the second lies too near the file's end to match, and the CLI says both."""
+    import json
+    from inbetween_jax.cli import main
+    path = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "cmu_bvh", "12_01.bvh")
+    if not os.path.exists(path):
+        pytest.skip("needs ../shared/data/cmu_bvh")
+    out = tmp_path / "o"
+    assert main(["infill", "--model", "cae", "--bvh", path, "--gaps", "100:340,380:500", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "gap 1: follows the nearest training motion" in err
+    assert "gap 2: not matched to training motion" in err
+    rows = json.loads((out / "infill.json").read_text())["gaps_ood"]
+    assert rows[0]["match_weight"] == 1.0 and rows[0]["match_departure"] < 0.5
+    assert rows[1]["match_weight"] == 0.0 and rows[1]["match_distance"] is None

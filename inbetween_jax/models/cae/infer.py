@@ -24,7 +24,7 @@ from inbetween_jax.geometry import forward_kinematics, quat_slerp
 from inbetween_jax.geometry.fit import fit_rotations
 from inbetween_jax.errors import UserError
 from inbetween_jax.models.cae import model as cae_model
-from inbetween_jax.models.cae.bank import (BANK_FILE, MatchBank, bank_folder, departure, match_enabled, match_gap, match_weight,
+from inbetween_jax.models.cae.bank import (BANK_FILE, MARGIN, MatchBank, bank_folder, departure, match_enabled, match_gap, match_weight,
                                            root_track)
 from inbetween_jax.models.cae.config import Config
 from inbetween_jax.models.cae.features import (body_frame_features, body_positions, mirror_clips, mirror_rows,
@@ -262,6 +262,9 @@ def infill(args, run: Run) -> InfillResult:
                              f"{g['match_weight']:.2f})")
             elif g.get("gate_weight", 1.0) < 0.5:
                 notes.append(f"gap {i + 1}: " + gate_note(g["ood_score"], g["gate_weight"], "the Hermite fill"))
+            if "match_weight" in g and g.get("match_distance") is None:
+                notes.append(f"gap {i + 1}: not matched to training motion: that needs {MARGIN} known frames at "
+                             f"{run.fps:.0f} fps on each side")
     return InfillResult(samples=[(f"{stem}_filled", [out], gen)], summary=summary,
                         extra_files={f"{stem}_filled.npy": functools.partial(_save_npy, arr=pos)},
                         what="known frames", notes=notes)
