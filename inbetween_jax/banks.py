@@ -23,7 +23,7 @@ import numpy as np
 from inbetween_jax.errors import UserError
 from inbetween_jax.train.run import RUN_FILE, RunError, load_run
 
-__all__ = ["BUILDERS", "interaction_bank", "scvae_bank", "run_fit_split", "write_bank"]
+__all__ = ["BUILDERS", "interaction_bank", "scvae_bank", "run_fit_split", "write_bank", "bank_folder"]
 
 
 def interaction_bank(run, source: str, split: str = "fit", mirror: bool = False):
@@ -67,13 +67,31 @@ def run_fit_split(run, split: str) -> str:
 
 
 def _shared_copy(model: str, run_dir: str, bank_path: str) -> str | None:
-    """For a CAE folder (whose bank is the S-CVAE's format): ``"scvae"`` when the ``scvae`` folder beside it (the
-    shipped weights' layout) holds a byte-identical bank, else None."""
+    """The folder beside ``run_dir`` (the shipped weights' layout: one folder per model) of another model whose bank
+    has the same builder (:data:`BUILDERS`: the CAE matches in the S-CVAE's format) and the same bytes as
+    ``bank_path``, or None."""
     import filecmp
-    if model != "cae":
-        return None
-    sibling = os.path.join(os.path.dirname(os.path.normpath(run_dir)), "scvae", os.path.basename(bank_path))
-    return "scvae" if os.path.isfile(sibling) and filecmp.cmp(sibling, bank_path, shallow=False) else None
+    parent = os.path.dirname(os.path.normpath(run_dir))
+    for other, builder in BUILDERS.items():
+        sibling = os.path.join(parent, other, os.path.basename(bank_path))
+        if (other != model and builder is BUILDERS[model] and os.path.isfile(sibling)
+                and filecmp.cmp(sibling, bank_path, shallow=False)):
+            return other
+    return None
+
+
+def bank_folder(run_dir: str, name: str) -> str:
+    """The folder whose bank file ``name`` a run uses: its own, or, when it holds none and its ``run.json`` records
+    ``bank.shared_with`` (:func:`write_bank` found the same bytes there), that sibling folder."""
+    if not os.path.isfile(os.path.join(run_dir, name)):
+        try:
+            with open(os.path.join(run_dir, RUN_FILE)) as f:
+                shared = (json.load(f).get("bank") or {}).get("shared_with")
+        except (OSError, ValueError):
+            shared = None
+        if shared:
+            return os.path.join(os.path.dirname(os.path.normpath(run_dir)), shared)
+    return run_dir
 
 
 def write_bank(run_dir: str, source: str | None = None, split: str = "fit", mirror: bool = False,

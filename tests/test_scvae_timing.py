@@ -72,11 +72,14 @@ def test_shipped_samples_are_retimed_between_two_keyframes_only():
         s = {"q": m.local_quats[k0], "r": m.root_pos[k0], "c": np.zeros(4)}
         e = {"q": m.local_quats[k1], "r": m.root_pos[k1], "c": np.zeros(4)}
         if sides:
-            s.update(zip(BEFORE, (m.local_quats[k0 - 1], m.root_pos[k0 - 1], m.local_quats[k0 - 2], m.root_pos[k0 - 2])))
-            e.update(zip(AFTER, (m.local_quats[k1 + 1], m.root_pos[k1 + 1], m.local_quats[k1 + 2], m.root_pos[k1 + 2])))
+            s.update(zip(BEFORE, (m.local_quats[k0 - 1], m.root_pos[k0 - 1], m.local_quats[k0 - 2],
+                                  m.root_pos[k0 - 2])))
+            e.update(zip(AFTER, (m.local_quats[k1 + 1], m.root_pos[k1 + 1], m.local_quats[k1 + 2],
+                                 m.root_pos[k1 + 2])))
         return s, e
     for sides in (False, True):
         on, plain = (infer.infill_between(t, m.skeleton, *keys(sides), n, S, 0, fa) for t in (trained, off))
         np.testing.assert_allclose(on["r"][0], plain["r"][0], atol=1e-6)
         moved = np.abs(on["r"][1:] - plain["r"][1:]).max()
         assert (moved > 1e-3) if not sides else (moved < 1e-6)
+        assert (np.abs(on["timing_shift"][1:]).min() > 0) if not sides else not on["timing_shift"].any()

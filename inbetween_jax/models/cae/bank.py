@@ -30,7 +30,7 @@ import numpy as np
 
 from inbetween_jax.errors import UserError
 
-__all__ = ["BANK_FILE", "SWITCHES", "MatchBank", "bank_folder", "match_enabled", "match_gap", "departure", "match_weight",
+__all__ = ["BANK_FILE", "SWITCHES", "MatchBank", "match_enabled", "match_gap", "departure", "match_weight",
            "root_track"]
 
 BANK_FILE = "bank.npz"
@@ -39,22 +39,6 @@ SWITCHES = ("model.match_k", "model.match_lo", "model.match_hi", "model.match_di
 MARGIN = 8                     # known frames a gap's context needs on each side (gate.CONTEXT_FRAMES)
 STRIDE = 2                     # frames between the bank's candidate windows
 CACHED_LENGTHS = 8             # gap lengths whose candidate contexts are kept
-
-
-def bank_folder(run_dir: str) -> str:
-    """The folder whose ``bank.npz`` a CAE run uses: its own, or for a shipped folder whose ``run.json`` records
-    ``bank.shared_with`` (``inbetween build-bank`` found a byte-identical bank there), that sibling folder."""
-    import json
-    import os
-    if not os.path.isfile(os.path.join(run_dir, BANK_FILE)):
-        try:
-            with open(os.path.join(run_dir, "run.json")) as f:
-                shared = (json.load(f).get("bank") or {}).get("shared_with")
-        except (OSError, ValueError):
-            shared = None
-        if shared:
-            return os.path.join(os.path.dirname(os.path.normpath(run_dir)), shared)
-    return run_dir
 
 
 def match_enabled(model_cfg) -> bool:

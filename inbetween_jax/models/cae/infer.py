@@ -21,11 +21,11 @@ import numpy as np
 from inbetween_jax.data.features import Normalizer
 from inbetween_jax.data.skeleton import Skeleton
 from inbetween_jax.geometry import forward_kinematics, quat_slerp
-from inbetween_jax.geometry.fit import fit_rotations
 from inbetween_jax.errors import UserError
+from inbetween_jax.geometry.fit import fit_rotations
 from inbetween_jax.models.cae import model as cae_model
-from inbetween_jax.models.cae.bank import (BANK_FILE, MARGIN, MatchBank, bank_folder, departure, match_enabled, match_gap, match_weight,
-                                           root_track)
+from inbetween_jax.models.cae.bank import (BANK_FILE, MARGIN, MatchBank, departure, match_enabled, match_gap,
+                                           match_weight, root_track)
 from inbetween_jax.models.cae.config import Config
 from inbetween_jax.models.cae.features import (body_frame_features, body_positions, mirror_clips, mirror_rows,
                                                num_features, to_global)
@@ -89,9 +89,10 @@ def load(run: Run) -> TrainedCAE:
     skeleton = Skeleton.from_dict(run.skeleton)
     match = None
     if match_enabled(cfg.model):
+        from inbetween_jax.banks import bank_folder
         from inbetween_jax.models.scvae.bank import TransitionBank
         from inbetween_jax.train.run import load_run_file
-        tb = load_run_file(bank_folder(run.run_dir), BANK_FILE, TransitionBank.load, "model.match_k")
+        tb = load_run_file(bank_folder(run.run_dir, BANK_FILE), BANK_FILE, TransitionBank.load, "model.match_k")
         try:
             match = MatchBank.from_transition_bank(tb, skeleton, normalizer, j)
         except UserError as e:

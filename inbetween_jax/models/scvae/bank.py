@@ -32,11 +32,12 @@ from inbetween_jax.geometry.quaternion import quat_align, quat_fix_sign_np, quat
 
 __all__ = ["BANK_FILE", "SWITCHES", "MIRROR_TAG", "TransitionBank", "keyframe_space", "knn_transition",
            "knn_base_path", "pad_base_path", "blend", "sample_blend", "bank_sample_blend", "retimed",
-           "timing_amplitudes", "sampled_mode",
-           "sample_weight", "bank_enabled", "bank_searched", "bank_needed", "check_mirror"]
+           "timing_amplitudes", "sampled_mode", "sample_weight", "bank_enabled", "bank_searched", "bank_needed",
+           "check_mirror"]
 
 BANK_FILE = "bank.npz"
-SWITCHES = ("model.bank_k", "model.bank_weight", "model.bank_tau", "model.bank_sample_weight", "model.timing_spread")   # inference only
+SWITCHES = ("model.bank_k", "model.bank_weight", "model.bank_tau", "model.bank_sample_weight",
+            "model.timing_spread")                                                      # inference only
 CACHED_LENGTHS = 8        # transition lengths whose match features a bank keeps (about 30 MB each for CMU)
 QUERY_CHUNK = 64          # queries warped at once (memory: chunk x k x frames x joints x 4)
 MAX_TURN = np.pi          # bank transitions whose root turns further than this (radians) are not candidates
@@ -355,7 +356,9 @@ def bank_sample_blend(bank: TransitionBank, key_q, key_r, tgt_q, tgt_r, q, r, we
 
 def timing_amplitudes(num_samples: int, spread: float) -> np.ndarray:
     """(S,) warp amplitudes of :func:`retimed`: 0 for sample 0, then +-spread/m, +-2 spread/m, ..., alternating
-    (m = ceil((S - 1) / 2)), so the samples cover early and late timings evenly."""
+    (m = ceil((S - 1) / 2)), so the samples cover early and late timings evenly; ``spread`` is capped at 0.95 (the
+    warp stays monotone below 1)."""
+    spread = min(float(spread), 0.95)
     s = np.arange(num_samples)
     m = max(int(np.ceil((num_samples - 1) / 2)), 1)
     return np.where(s == 0, 0.0, np.where(s % 2 == 1, 1.0, -1.0) * np.ceil(s / 2) * spread / m)
@@ -370,7 +373,7 @@ def retimed(key_q, key_r, tgt_q, tgt_r, q, r, spread: float):
     later.  Sample 0 is unchanged.  Returns float64 arrays of q's and r's shapes."""
     q, r = np.array(q, np.float64), np.array(r, np.float64)
     n_s, _, length = q.shape[:3]
-    amps = timing_amplitudes(n_s, min(float(spread), 0.95))
+    amps = timing_amplitudes(n_s, spread)
     t = np.arange(1, length + 1) / (length + 1)
     for s in range(1, n_s):
         fq = np.concatenate([np.asarray(key_q, np.float64)[:, None], q[s], np.asarray(tgt_q, np.float64)[:, None]], 1)

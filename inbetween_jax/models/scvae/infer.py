@@ -22,7 +22,7 @@ import numpy as np
 from inbetween_jax.models.scvae import model as M
 from inbetween_jax.models.scvae.bank import (BANK_FILE, TransitionBank, bank_enabled, bank_needed, bank_sample_blend,
                                              bank_searched, blend, knn_base_path, knn_transition, pad_base_path,
-                                             sample_weight, sampled_mode)
+                                             sample_weight, sampled_mode, timing_amplitudes)
 from inbetween_jax.models.scvae.context import context_kind, context_offsets, known_sides, neighbours, onto_context
 from inbetween_jax.models.scvae.features import keyframe_contacts, past_frame_inputs
 from inbetween_jax.models.scvae.losses import fk_positions
@@ -99,9 +99,11 @@ def load_bank(run_dir: str, model_cfg, num_joints: int) -> TransitionBank | None
     if m.bank_base and m.bank_k < 1:
         raise RunError(f"{run_dir}: model.bank_base needs model.bank_k >= 1 (got {m.bank_k})")
     need = "model.bank_base" if m.bank_base else "model.bank_k" if m.bank_k > 0 else "model.bank_sample_weight"
-    bank = load_run_file(run_dir, BANK_FILE, TransitionBank.load, need)
+    from inbetween_jax.banks import bank_folder
+    folder = bank_folder(run_dir, BANK_FILE)          # its own, or the CAE's beside it when build-bank shared it
+    bank = load_run_file(folder, BANK_FILE, TransitionBank.load, need)
     if bank.num_joints != num_joints:
-        raise RunError(f"{os.path.join(run_dir, BANK_FILE)}: the bank has {bank.num_joints} joints, the model "
+        raise RunError(f"{os.path.join(folder, BANK_FILE)}: the bank has {bank.num_joints} joints, the model "
                        f"{num_joints}")
     return bank
 
@@ -223,7 +225,8 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
     forward_axis: the root's local facing axis (default: inferred from ``skeleton``).
     Returns ``q`` (S, frames + 2, J, 4) and ``r`` (S, frames + 2, 3) float64 in the keyframes' world space;
     frame 0 is ``start`` and frame ``frames + 1`` is ``end``, both exactly as given; ``context``: which
-    neighbouring frames the fill continues (:func:`~.context.context_kind`), and with the gate ``ood_score`` and
+    neighbouring frames the fill continues (:func:`~.context.context_kind`); ``timing_shift`` (S,): each sample's
+    retiming amplitude (:func:`~.bank.retimed`; zeros when not retimed); and with the gate ``ood_score`` and
     ``gate_weight``.
 
     Raises:
@@ -286,15 +289,17 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
         mid_q, mid_r = onto_context(q[:, None, 1:-1], r[:, None, 1:-1],
                                     *slerp_base(qs[None], roots[:1], qe[None], roots[1:], frames), dq, dr)
         q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
+    timing = np.zeros(num_samples)
     if trained.bank is not None and sampled_mode(m, num_samples):   # sample s >= 1: the bank's s-th nearest
+        spread = m.timing_spread if ctx == "none" else 0.0           # inside a clip the sides pin the timing
         mid_q, mid_r = bank_sample_blend(trained.bank, qs[None], roots[:1], qe[None], roots[1:], q[:, None, 1:-1],
-                                         r[:, None, 1:-1], sample_weight(m, gated.get("gate_weight")),
-                                         m.timing_spread if ctx == "none" else 0.0)    # inside a clip the sides
-                                                                                         # pin the timing
+                                         r[:, None, 1:-1], sample_weight(m, gated.get("gate_weight")), spread)
         q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
+        if spread > 0:                                               # as bank_sample_blend retimes
+            timing = timing_amplitudes(num_samples, spread)
     q[:, 0], r[:, 0], q[:, -1], r[:, -1] = qs, roots[0], qe, roots[1]                 # exact keyframes
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    return {"q": quat_fix_sign_np(q, axis=1), "r": r, **gated, "context": ctx}
+    return {"q": quat_fix_sign_np(q, axis=1), "r": r, **gated, "context": ctx, "timing_shift": timing}
 
 
 def _is_lafan1_skeleton(skel) -> bool:
@@ -391,9 +396,6 @@ def infill(args, run):
     from inbetween_jax.evaluation.samples import sample_spread
     spread = sample_spread([m[0] for _, m, _ in samples])
     blends = [0.0] + [round(toward, 4)] * (args.samples - 1)     # sample 0 is the fill
-    from inbetween_jax.models.scvae.bank import timing_amplitudes
-    timing = (timing_amplitudes(args.samples, min(m.timing_spread, 0.95)) if sampling and context == "none"
-              else np.zeros(args.samples))                       # retimed samples (bank.retimed): > 0 earlier
     return InfillResult(samples=samples, summary={**keyframes, "frames": args.frames,
                                                   "samples": args.samples, "step": trained.step,
                                                   "past_frame": past, "context": context, **gated,
@@ -401,6 +403,6 @@ def infill(args, run):
                                                   "samples_ood": [dict(gated, sample=n, toward_captured=b,
                                                                        timing_shift=round(float(a), 4))
                                                                   for n, b, a in zip(sample_names(args.samples),
-                                                                                     blends, timing)]
+                                                                                     blends, res["timing_shift"])]
                                                   if gated else []},
                         notes=notes)
