@@ -25,7 +25,7 @@ from inbetween_jax.data.activities import activity_group
 from inbetween_jax.evaluation.worst_case import summarise
 from inbetween_jax.geometry import forward_kinematics
 from inbetween_jax.metrics.steps import lift_offs
-from inbetween_jax.models.cae.bank import MatchBank, departure, match_gap, root_track
+from inbetween_jax.models.cae.bank import MatchBank, departure, match_gap
 from inbetween_jax.models.cae.features import body_frame_features, to_global
 from inbetween_jax.models.cae.infer import fill, load
 from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
@@ -42,6 +42,8 @@ p.add_argument("--tempos", default="1", help="the bank's clips also played at th
 p.add_argument("--mirror", action="store_true", help="the bank's clips' mirror images too")
 p.add_argument("--list", action="store_true", help="list every gap of the first config")
 p.add_argument("--figure", default=None, help="write the first config's calibration figure (PNG) here")
+p.add_argument("--leaky", action="store_true",
+               help="features of the whole file, gap frames included (the evaluation before 2026-12-05)")
 p.add_argument("--departure", type=float, default=0.5,
                help="matches departing further from the fill (bank.departure) are never used")
 a = p.parse_args()
@@ -55,15 +57,16 @@ configs = [(int(k), float(d)) for k in a.k.split(",") for d in a.disp.split(",")
 records = collections.defaultdict(list)
 for m in load_motions("cmu", a.split):
     gp = forward_kinematics(m.local_quats, m.local_pos, m.skeleton.parents)[1]
-    feats = body_frame_features(m)
-    x = model.normalizer(feats.features).T.astype(np.float32)
-    ref, yaw = root_track(feats.features, j, feats.ref0, feats.yaw0)
     group = activity_group(str(m.source))
     for sec in [float(s) for s in a.seconds.split(",")]:
         g = int(round(sec * m.fps))
         for lo in range(10, m.num_frames - g - 10, max(g, 30)):
             fm = gap_frames(m.num_frames, [(lo, lo + g)])
             mask = frame_mask_image(fm, j)
+            # as infill: no known frame's features read the gap (--leaky: the whole file's, as before 2026-12-05)
+            feats = body_frame_features(m, known=None if a.leaky else fm > 0.5)
+            x = model.normalizer(feats.features).T.astype(np.float32)
+            ref, yaw = feats.ref, feats.yaw
             y = fill(model, x, mask)                                  # as shipped: gated
             w = (np.arange(1, g + 1) / (g + 1))[:, None, None]
             lin_err = np.linalg.norm(gp[lo - 1] + w * (gp[lo + g] - gp[lo - 1]) - gp[lo:lo + g], axis=-1).mean()
@@ -71,7 +74,7 @@ for m in load_motions("cmu", a.split):
 
             def positions(yy):
                 return to_global(yy, model.normalizer, j, feats.ref0, feats.yaw0, known_feats=feats.features,
-                                 frame_mask=fm, root_bound=bound)
+                                 frame_mask=fm, root_bound=bound, known_track=(feats.ref, feats.yaw))
             base_pos = positions(y)
             base_err = np.linalg.norm(base_pos[lo:lo + g] - gp[lo:lo + g], axis=-1).mean()
             for k, disp in configs:

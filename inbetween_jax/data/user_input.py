@@ -173,12 +173,21 @@ def parse_gaps(text: str, num_frames=None, path: str = "", notes=None) -> list:
 
 
 def resampled_gaps(gaps, ratio: float, num_frames: int, text: str, path: str) -> list:
-    """Gaps in a file's frames -> gaps in its resampled frames (``ratio`` = new fps / file fps): each end
-    rounded to the nearest resampled frame, at least one frame per gap, merged again where they now touch."""
+    """Gaps in a file's frames -> gaps in its resampled frames (``ratio`` = new fps / file fps,
+    :func:`~inbetween_jax.data.resample.resample_motion`'s frame times ``k / ratio``): every resampled frame
+    interpolated from a gap frame is in the gap, so no known frame reads one: the gap starts at the first frame
+    after file time ``a - 1`` and ends at the first frame at or after file time ``b``.  A gap that falls between
+    two resampled frames keeps the nearest one; gaps are merged again where they now touch."""
     out = []
+    eps = 1e-6
     for a, b in gaps:
-        lo = min(int(round(a * ratio)), num_frames - 1)
-        out.append((lo, min(max(int(round(b * ratio)), lo + 1), num_frames)))
+        lo = 0 if a == 0 else int(np.floor((a - 1) * ratio + eps)) + 1
+        hi = int(np.ceil(b * ratio - eps))
+        if hi <= lo:                                   # between two resampled frames: the nearest one
+            lo = int(round(0.5 * (a + b) * ratio))
+            hi = lo + 1
+        lo = min(lo, num_frames - 1)
+        out.append((lo, min(max(hi, lo + 1), num_frames)))
     out, _ = merge_gaps(out)
     if out == [(0, num_frames)]:
         raise UserError(f"--gaps {text!r}: after resampling the gaps cover all {num_frames} frames of {path}; "

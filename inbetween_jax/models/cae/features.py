@@ -51,6 +51,8 @@ class MotionFeatures:
     yaw0: float
     global_pos: np.ndarray
     name: str = ""
+    ref: np.ndarray | None = None       # (T, 2) the root's floor path
+    yaw: np.ndarray | None = None       # (T,) the facing, unwrapped (the known frames' track, see body_frame_features)
 
 
 def _side_joints(skeleton) -> list:
@@ -74,17 +76,19 @@ def _side_joints(skeleton) -> list:
     return pairs
 
 
-def smoothed_facing_yaw(global_pos: np.ndarray, skeleton, smooth: float = 4.0) -> np.ndarray:
+def smoothed_facing_yaw(global_pos: np.ndarray, skeleton, smooth: float = 4.0, known=None) -> np.ndarray:
     """(T, J, 3) global positions -> (T,) facing yaw (``atan2(fx, fz)``, yaw 0 faces +Z).
 
     As Holden et al.: across = sum of (left - right) over the hip joints and the shoulders, forward =
-    across x up, Gaussian-smoothed over time (``smooth`` frames std) before the angle is taken.
+    across x up, Gaussian-smoothed over time (``smooth`` frames std) before the angle is taken.  known: optional
+    (T,) bool; the smoothing then reads those frames only (:func:`~inbetween_jax.data.filters.gaussian_lowpass`),
+    so no frame's facing depends on an unknown one.
     """
     gp = np.asarray(global_pos, np.float64)
     across = sum(gp[:, a] - gp[:, b] for a, b in _side_joints(skeleton))
     fwd = np.stack([-across[:, 2], across[:, 0]], axis=-1)            # (fx, fz) = across x (0, 1, 0)
     if smooth > 0 and len(fwd) > 1:
-        fwd = gaussian_lowpass(fwd, smooth, 0, np.float64)
+        fwd = gaussian_lowpass(fwd, smooth, 0, np.float64, known=known)
     return np.arctan2(fwd[:, 0], fwd[:, 1])
 
 
@@ -106,13 +110,27 @@ def positions_to_features(global_pos: np.ndarray, yaw: np.ndarray) -> np.ndarray
     return np.concatenate([local.reshape(t, 3 * j), vel], axis=1).astype(np.float32)
 
 
-def body_frame_features(motion, smooth: float = 4.0) -> MotionFeatures:
-    """A :class:`~inbetween_jax.data.Motion` -> :class:`MotionFeatures` (FK through the shared geometry)."""
+def body_frame_features(motion, smooth: float = 4.0, known=None) -> MotionFeatures:
+    """A :class:`~inbetween_jax.data.Motion` -> :class:`MotionFeatures` (FK through the shared geometry).
+
+    known: optional (T,) bool, the frames that may be read (``inbetween infill``: all but the gaps).  Then no
+    known frame's features depend on an unknown frame: the facing is smoothed over known frames only, and a
+    known frame right after an unknown one (or frame 0) takes its root velocity from the step to the next frame
+    (0 if that one is unknown too), as frame 0 always does.  The unknown frames' own features still come from
+    their content; the caller masks them.  ``ref`` / ``yaw`` hold the root's floor path and unwrapped facing.
+    """
     gp = motion.global_positions()
-    yaw = smoothed_facing_yaw(gp, motion.skeleton, smooth)
+    yaw = smoothed_facing_yaw(gp, motion.skeleton, smooth, known=known)
     feats = positions_to_features(gp, yaw)
+    if known is not None:
+        k = np.asarray(known, bool).reshape(-1)
+        after = k & ~np.concatenate([[False], k[:-1]])                  # known, previous frame unknown or none
+        nxt_ok = np.concatenate([k[1:], [False]])
+        for t in np.flatnonzero(after):
+            feats[t, -3:] = feats[t + 1, -3:] if nxt_ok[t] else 0.0
     return MotionFeatures(feats, gp[0, 0, [0, 2]].astype(np.float64), float(yaw[0]), gp.astype(np.float32),
-                          getattr(motion, "source", ""))
+                          getattr(motion, "source", ""), ref=gp[:, 0, [0, 2]].astype(np.float64),
+                          yaw=np.unwrap(yaw))
 
 
 def mirror_rows(skeleton) -> tuple:
@@ -175,7 +193,7 @@ def body_positions(x_norm, normalizer: Normalizer, num_joints: int) -> np.ndarra
 
 
 def to_global(y_norm, normalizer: Normalizer, num_joints: int, ref0, yaw0: float, known_feats=None, frame_mask=None,
-              root_bound: float = 0.0):
+              root_bound: float = 0.0, known_track=None):
     """One clip (D, T) normalised -> (T, J, 3) global positions.
 
     Without ``known_feats``: the predicted root velocities are integrated from ``(ref0, yaw0)`` at frame 0.
@@ -185,14 +203,19 @@ def to_global(y_norm, normalizer: Normalizer, num_joints: int, ref0, yaw0: float
     ``root_bound`` > 0 (data units; with ``known_feats``): the root's floor path in the gaps stays within that
     distance of :func:`root_base_path`, the limited cubic Hermite through the known root positions (a deviation
     d becomes ``d min(1, root_bound / |d|)``), so an integrated path cannot run ahead of the motion and back.
+    known_track: optional ``(ref (T, 2), yaw (T,))``, the known frames' root path and unwrapped facing
+    (``MotionFeatures.ref`` / ``.yaw``), used instead of integrating ``known_feats``' velocities (whose first
+    velocity after a gap no longer reads the gap when the features were built with ``known``).
     """
     from inbetween_jax.models.cae.masks import gap_ranges
     y = normalizer.inverse(np.asarray(y_norm, np.float64).T)
-    if known_feats is None:
+    if known_feats is None and known_track is None:
         return features_to_global(y, num_joints, ref0, yaw0)
-    _, vk = split_features(np.asarray(known_feats, np.float64), num_joints)
     _, vy = split_features(y, num_joints)
-    ref, yaw = integrate_root(vk, ref0, yaw0)
+    if known_track is not None:
+        ref, yaw = (np.array(v, np.float64) for v in known_track)
+    else:
+        ref, yaw = integrate_root(split_features(np.asarray(known_feats, np.float64), num_joints)[1], ref0, yaw0)
     t_len = len(ref)
     for a, b in gap_ranges(frame_mask):
         start = max(a - 1, 0)

@@ -25,7 +25,7 @@ from inbetween_jax.errors import UserError
 from inbetween_jax.geometry.fit import fit_rotations
 from inbetween_jax.models.cae import model as cae_model
 from inbetween_jax.models.cae.bank import (BANK_FILE, MARGIN, MatchBank, departure, match_enabled, match_gap,
-                                           match_weight, root_track)
+                                           match_weight)
 from inbetween_jax.models.cae.config import Config
 from inbetween_jax.models.cae.features import (body_frame_features, body_positions, mirror_clips, mirror_rows,
                                                num_features, to_global)
@@ -152,10 +152,10 @@ def process_motion(model, motion, gaps=(), noise: float = 0.0, dropout: float = 
     if not motion.skeleton.same_topology(skel):
         raise ValueError(f"{motion.source}: skeleton differs from the checkpoint's ({skel.num_joints} joints)")
     t_len = motion.num_frames
-    feats = body_frame_features(motion)
+    fm = gap_frames(t_len, gaps)
+    feats = body_frame_features(motion, known=(fm > 0.5) if gaps else None)   # nothing read from a gap's frames
     x = model.normalizer(feats.features).T.astype(np.float32)            # (D, T)
     rng = np.random.default_rng(seed)
-    fm = gap_frames(t_len, gaps)
     mask = frame_mask_image(fm, j)
     if joints:
         idx = [skel.index(n) if isinstance(n, str) else int(n) for n in joints]
@@ -174,7 +174,7 @@ def process_motion(model, motion, gaps=(), noise: float = 0.0, dropout: float = 
         gated = _matched(model, y, x_in * mask, feats, fm, gated)
     bound = float(getattr(model.cfg.model, "root_bound", 0.0)) * 100.0 if hasattr(model, "cfg") else 0.0
     pos = to_global(y, model.normalizer, j, feats.ref0, feats.yaw0, known_feats=feats.features, frame_mask=fm,
-                    root_bound=bound if gaps else 0.0)
+                    root_bound=bound if gaps else 0.0, known_track=(feats.ref, feats.yaw))
     scored = (fm < 0.5) if gaps else np.ones(t_len, bool)     # gaps: their frames; otherwise every frame
     err = mpjpe(body_positions(y, model.normalizer, j), body_positions(x, model.normalizer, j),
                 mask=scored, root_relative=False)
@@ -195,7 +195,7 @@ def _matched(model, y, x_masked, feats, frame_mask, gated) -> list:
     ``match_weight`` added."""
     from inbetween_jax.models.cae.masks import gap_ranges
     mc = model.cfg.model
-    ref, yaw = root_track(feats.features, model.num_joints, feats.ref0, feats.yaw0)    # read at known frames only
+    ref, yaw = feats.ref, feats.yaw                                   # read at known frames only
     rows = [dict(r) for r in gated] or [{"gap": [int(a), int(b)]} for a, b in gap_ranges(frame_mask)]
     for row in rows:
         a, b = row["gap"]

@@ -1,0 +1,88 @@
+"""``inbetween infill --model cae`` never reads the frames it replaces: on a validation subject's walk whose gap frames
+are swapped for other motion, the features of every known frame, the gate's and the match's scores and the whole
+output are the same as with the captured frames; the first velocity after a gap is the next step's; the frame-rate
+conversion of the gaps leaves no known frame interpolated from a gap frame."""
+from __future__ import annotations
+
+import dataclasses
+import os
+
+import numpy as np
+import pytest
+
+from inbetween_jax.data import load_motions
+from inbetween_jax.data.resample import sample_times
+from inbetween_jax.data.user_input import resampled_gaps
+from inbetween_jax.models.cae.features import body_frame_features, integrate_root, split_features
+
+GAP = (40, 70)
+
+
+@pytest.fixture(scope="module")
+def walks():
+    """A validation subject's 30 fps walk, and the same file with its gap frames replaced by the walk played
+    backwards (another place, the other way)."""
+    walk = [m for m in load_motions("cmu", "val-subjects") if os.path.basename(str(m.source)) == "12_02.bvh"][0]
+    a, b = GAP
+    lq, lp = np.array(walk.local_quats), np.array(walk.local_pos)
+    lq[a:b], lp[a:b] = lq[::-1][a:b], lp[::-1][a:b]
+    return walk, dataclasses.replace(walk, local_quats=lq, local_pos=lp)
+
+
+def test_known_frames_features_do_not_read_the_gap(walks):
+    walk, other = walks
+    a, b = GAP
+    known = np.ones(walk.num_frames, bool)
+    known[a:b] = False
+    f, g = (body_frame_features(m, known=known) for m in walks)
+    np.testing.assert_array_equal(f.features[known], g.features[known])
+    np.testing.assert_array_equal(f.ref[known], g.ref[known])
+    np.testing.assert_array_equal(f.yaw[known], g.yaw[known])
+    leaky = [body_frame_features(m) for m in walks]           # the whole file's features do read it
+    assert np.abs(leaky[0].features[b] - leaky[1].features[b]).max() > 1.0
+    np.testing.assert_array_equal(f.features[b, -3:], f.features[b + 1, -3:])    # the next step's velocity
+    whole = body_frame_features(walk)
+    np.testing.assert_allclose(whole.ref, f.ref)
+    ref, yaw = integrate_root(split_features(whole.features, walk.skeleton.num_joints)[1], whole.ref0, whole.yaw0)
+    np.testing.assert_allclose(ref, whole.ref, atol=1e-6)    # the track is the one the velocities integrate to
+    np.testing.assert_allclose(yaw, whole.yaw, atol=1e-9)
+
+
+def test_cae_infill_is_the_same_whatever_the_gap_holds(walks):
+    from inbetween_jax.models.cae.infer import load, process_motion
+    from inbetween_jax.shipped import shipped_run
+    model = load(shipped_run("cae"))
+    res = [process_motion(model, m, [GAP]) for m in walks]
+    np.testing.assert_array_equal(res[0]["positions"], res[1]["positions"])
+    np.testing.assert_array_equal(res[0]["motion"].local_quats, res[1]["motion"].local_quats)
+    assert res[0]["gaps_ood"] == res[1]["gaps_ood"] and res[0]["gaps_ood"][0]["match_weight"] > 0.5
+
+
+@pytest.mark.parametrize("src_fps", [120.0, 25.0, 50.0])
+def test_resampled_gaps_leave_no_known_frame_reading_a_gap(src_fps):
+    """Every resampled frame outside the converted gaps is interpolated from frames outside the file's gaps, and
+    every frame inside them reads a gap frame (the conversion is tight), for gaps at many offsets."""
+    n_src = 400
+    u = sample_times(n_src, src_fps, 30.0)
+    n_out = len(u)
+    i0 = np.floor(u + 1e-9).astype(int)
+    w = u - i0
+    for a in range(3, 60):
+        for length in (1, 2, 5, 17):
+            gaps = [(a, a + length), (a + 150, a + 150 + 3 * length)]
+            out = resampled_gaps(gaps, 30.0 / src_fps, n_out, "", "f.bvh")
+            bad = np.zeros(n_src + 1, bool)
+            for lo, hi in gaps:
+                bad[lo:hi] = True
+            def reading(lo, hi):
+                bad = np.zeros(n_src + 1, bool)
+                bad[lo:hi] = True
+                return bad[i0] | ((np.abs(w) > 1e-9) & bad[np.minimum(i0 + 1, n_src)])
+            per_gap = [reading(lo, hi) for lo, hi in gaps]
+            reads = np.any(per_gap, axis=0)
+            filled = np.zeros(n_out, bool)
+            for lo, hi in out:
+                filled[lo:hi] = True
+            assert not (reads & ~filled).any(), (src_fps, gaps, out)
+            # tight: a filled frame that reads no gap frame only stands for a gap no frame reads
+            assert (filled & ~reads).sum() <= sum(not r.any() for r in per_gap), (src_fps, gaps, out)
