@@ -5,12 +5,16 @@ conversion of the gaps leaves no known frame interpolated from a gap frame."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 
 import numpy as np
 import pytest
 
-from inbetween_jax.data import load_motions
+from conftest import SHARED_DATA
+from inbetween_jax.cli import main
+from inbetween_jax.data import load_motions, read_bvh
+from inbetween_jax.data.bvh import write_bvh
 from inbetween_jax.data.resample import sample_times
 from inbetween_jax.data.user_input import resampled_gaps
 from inbetween_jax.models.cae.features import body_frame_features, integrate_root, split_features
@@ -86,3 +90,53 @@ def test_resampled_gaps_leave_no_known_frame_reading_a_gap(src_fps):
             assert not (reads & ~filled).any(), (src_fps, gaps, out)
             # tight: a filled frame that reads no gap frame only stands for a gap no frame reads
             assert (filled & ~reads).sum() <= sum(not r.any() for r in per_gap), (src_fps, gaps, out)
+
+
+@pytest.mark.parametrize("src_fps", [120.0, 25.0, 50.0, 30.0])
+def test_keyframes_at_another_rate_read_no_frame_of_the_fill(src_fps):
+    """The S-CVAE's and the interaction model's keyframes at the model's rate: a start keyframe is interpolated
+    from file frames at or before its own, an end keyframe from frames at or after it, at most one converted frame
+    away."""
+    from types import SimpleNamespace
+    from inbetween_jax.data.retarget import Prepared, to_frame
+    n_src = 300
+    u = sample_times(n_src, src_fps, 30.0)
+    prep = Prepared("f.bvh", SimpleNamespace(num_frames=len(u)), None, None, 30.0 / src_fps, None)
+    for f in range(1, 250):
+        s, e = to_frame(prep, f, "start"), to_frame(prep, f, "end")
+        reads_s = np.ceil(u[s] - 1e-9)                  # the latest file frame the converted frame is built from
+        reads_e = np.floor(u[e] + 1e-9)                 # the earliest
+        assert reads_s <= f and reads_e >= f, (f, s, e)
+        assert f - u[s] < src_fps / 30.0 + 1e-9 and u[e] - f < src_fps / 30.0 + 1e-9
+        assert abs(to_frame(prep, f) - f * 30.0 / src_fps) <= 0.5 + 1e-9    # no side: the nearest
+
+
+def test_a_rate_stored_a_little_off_moves_no_gap_end():
+    """A checkpoint rate stored as 30.000012 fps (ratio 0.2500001 to a 120 Hz file) converts gaps as 30 fps does."""
+    gaps = [(40, 120), (200, 240), (301, 322)]
+    want = resampled_gaps(gaps, 0.25, 86, "", "f.bvh")
+    assert want == [(10, 30), (50, 60), (76, 81)]
+    assert resampled_gaps(gaps, 30.000012 / 120.0, 86, "", "f.bvh") == want
+    assert resampled_gaps(gaps, 29.999988 / 120.0, 86, "", "f.bvh") == want
+
+
+def test_cli_output_is_the_same_whatever_the_gap_holds(tmp_path, capsys):
+    """The whole user path (a raw 120 Hz, 43-joint validation walk; resampled to 30 fps, joints matched, filled,
+    expanded, written): a file whose gap frames hold the walk played backwards gives the same BVH and infill.json
+    scores as the captured file."""
+    raw = os.path.join(SHARED_DATA, "cmu_bvh", "12_02.bvh")
+    if not os.path.isfile(raw):
+        pytest.skip("raw CMU BVH not found")
+    m = read_bvh(raw)
+    lq, lp = np.array(m.local_quats), np.array(m.local_pos)
+    lq[201:322], lp[201:322] = lq[::-1][201:322], lp[::-1][201:322]
+    write_bvh(tmp_path / "captured.bvh", m)
+    write_bvh(tmp_path / "broken.bvh", dataclasses.replace(m, local_quats=lq, local_pos=lp))
+    outs = []
+    for name in ("captured", "broken"):
+        assert main(["infill", "--model", "cae", "--bvh", str(tmp_path / f"{name}.bvh"), "--gaps", "201:322",
+                     "--out", str(tmp_path / name)]) == 0, capsys.readouterr().err
+        info = json.load(open(tmp_path / name / "infill.json"))
+        outs.append((read_bvh(tmp_path / name / f"{name}_filled.bvh").global_positions(), info["gaps_ood"]))
+    np.testing.assert_array_equal(outs[0][0], outs[1][0])
+    assert outs[0][1] == outs[1][1]

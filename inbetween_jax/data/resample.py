@@ -73,8 +73,8 @@ def _sign_continuous(q: np.ndarray) -> np.ndarray:
 def resample_motion(motion, fps: float = WORKING_FPS):
     """``motion`` (a :class:`~inbetween_jax.data.bvh.Motion`) at ``fps`` frames per second.
 
-    The source rate is :func:`nominal_fps` of ``motion.frame_time``; when it already equals ``fps`` the
-    motion is returned unchanged.  Otherwise output frame ``k`` is time ``k / fps``: local rotations
+    The source rate is :func:`nominal_fps` of ``motion.frame_time`` (``fps`` is snapped the same way); when it
+    already equals ``fps`` the motion is returned unchanged.  Otherwise output frame ``k`` is time ``k / fps``: local rotations
     (T, J, 4) slerped and local positions (T, J, 3) (root trajectory, animated position channels) linearly
     interpolated between the neighbouring source frames; the result covers the source's duration
     (``floor((T - 1) * fps / src_fps) + 1`` frames) and has ``frame_time = 1 / fps``.
@@ -82,6 +82,7 @@ def resample_motion(motion, fps: float = WORKING_FPS):
     fps = float(fps)
     if not np.isfinite(fps) or fps <= 0:
         raise ValueError(f"target frame rate must be positive, got {fps!r}")
+    fps = nominal_fps(1.0 / fps)          # a rate stored as 30.000012 is 30: 120 -> 30 stays a plain subsample
     src = nominal_fps(motion.frame_time)
     if abs(src - fps) <= _NOMINAL_RTOL * fps:
         return motion

@@ -174,9 +174,16 @@ class Prepared:
     note: str | None
 
 
-def to_frame(prep: Prepared, frame: int) -> int:
-    """A frame number of the file -> the nearest frame of the resampled motion."""
-    return min(int(round(frame * prep.ratio)), prep.full.num_frames - 1)
+def to_frame(prep: Prepared, frame: int, side: str | None = None) -> int:
+    """A frame number of the file -> a frame of the resampled motion: the nearest one, or with ``side="start"``
+    the last one at or before it and with ``side="end"`` the first one at or after it.  A resampled frame between
+    two file frames is interpolated from both, so a keyframe that starts (ends) a fill is taken from the frames up
+    to (from) its own and never from the frames the fill replaces."""
+    u = frame * prep.ratio
+    if side not in (None, "start", "end"):
+        raise ValueError(f"side must be None, 'start' or 'end', not {side!r}")
+    k = np.floor(u + 1e-3) if side == "start" else np.ceil(u - 1e-3) if side == "end" else round(u)
+    return min(max(int(k), 0), prep.full.num_frames - 1)
 
 
 def prepare(motion, path: str, ckpt_skel, fps=None) -> Prepared:
@@ -192,7 +199,7 @@ def prepare(motion, path: str, ckpt_skel, fps=None) -> Prepared:
         src = nominal_fps(motion.frame_time)
         full = resample_motion(motion, float(fps))
         if full is not motion:
-            ratio = float(fps) / src
+            ratio = nominal_fps(1.0 / float(fps)) / src          # as resample_motion snaps it
             parts.append(f"{src:g} fps resampled to the checkpoint's {float(fps):g} fps")
     match, out = None, full
     if ckpt_skel is not None and not full.skeleton.same_topology(ckpt_skel):

@@ -179,7 +179,7 @@ def resampled_gaps(gaps, ratio: float, num_frames: int, text: str, path: str) ->
     after file time ``a - 1`` and ends at the first frame at or after file time ``b``.  A gap that falls between
     two resampled frames keeps the nearest one; gaps are merged again where they now touch."""
     out = []
-    eps = 1e-6
+    eps = 1e-3                       # a frame rate stored as e.g. 29.99999 must not move a gap end by a frame
     for a, b in gaps:
         lo = 0 if a == 0 else int(np.floor((a - 1) * ratio + eps)) + 1
         hi = int(np.ceil(b * ratio - eps))

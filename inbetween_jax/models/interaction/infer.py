@@ -174,7 +174,7 @@ def infill(args, run: Run) -> InfillResult:
         prep, factor = _on_run_rig(m, path, skel, run.fps, notes)
         kprep = prep if kpath == path else _on_run_rig(km, kpath, skel, run.fps, [])[0]
         own.append((start, kf))
-        start, kf = to_frame(prep, start), to_frame(kprep, kf)
+        start, kf = to_frame(prep, start, "start"), to_frame(kprep, kf, "end")
         if start < n_in - 1:
             raise UserError(f"{opt} {path}: the model needs {n_in} frames of context (at {run.fps or m.fps:g} fps) up "
                             f"to the start frame; choose a later start frame")

@@ -336,7 +336,7 @@ def infill(args, run):
     pe = ps if ep == sp else prepare(em, ep, trained.skeleton, run.fps)
     notes = list(dict.fromkeys(p.note for p in (ps, pe) if p.note))
     keyframes = {"start": f"{sp}:{sf}", "end": f"{ep}:{ef}"}                     # the files' own frame numbers
-    sm, em, sf, ef = ps.motion, pe.motion, to_frame(ps, sf), to_frame(pe, ef)
+    sm, em, sf, ef = ps.motion, pe.motion, to_frame(ps, sf, "start"), to_frame(pe, ef, "end")
     skel = sm.skeleton
     lo, hi = frame_range(trained.cfg)
     if not lo <= args.frames <= hi:
