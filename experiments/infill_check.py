@@ -18,6 +18,7 @@ import numpy as np
 
 from inbetween_jax.data import read_bvh
 from inbetween_jax.data.activities import activity_group
+from inbetween_jax.data.datasets import GENERIC_CONTACT_VELFACTOR
 from inbetween_jax.data.retarget import prepare
 from inbetween_jax.evaluation.worst_case import summarise
 from inbetween_jax.geometry import forward_kinematics
@@ -25,6 +26,7 @@ from inbetween_jax.metrics.steps import lift_offs
 from inbetween_jax.models.cae.infer import load as load_cae, process_motion
 from inbetween_jax.models.scvae import infer as scvae
 from inbetween_jax.models.scvae.context import AFTER, BEFORE
+from inbetween_jax.models.scvae.features import keyframe_contacts
 from inbetween_jax.models.scvae.gate import slerp_base
 from inbetween_jax.shipped import shipped_run
 from inbetween_jax.train.config import apply_overrides
@@ -42,6 +44,7 @@ srun, crun = shipped_run("scvae"), shipped_run("cae")
 sm, cm = scvae.load(srun), load_cae(crun)
 sm = dataclasses.replace(sm, cfg=apply_overrides(sm.cfg, a.scvae_set))
 fa = tuple(sm.extra.get("forward_axis") or sm.skeleton.forward_axis())
+vf = sm.extra.get("contact_velfactor", GENERIC_CONTACT_VELFACTOR)        # the keyframes' foot contacts, as infill
 fk = lambda m, q, r: forward_kinematics(q, np.concatenate([r[..., None, :], np.broadcast_to(  # noqa: E731
     m.local_pos[0, 1:], r.shape[:-1] + m.local_pos[0, 1:].shape)], -2), m.skeleton.parents)[1]
 res = {"scvae": [], "cae": []}
@@ -52,8 +55,8 @@ for path in a.files:
     for n in [int(x) for x in a.scvae_frames.split(",")]:
         for k0 in range(3, m.num_frames - n - 2, a.stride):   # frames 0-1: often capture start-up
             k1 = k0 + n + 1
-            s = {"q": m.local_quats[k0], "r": m.root_pos[k0], "c": np.zeros(4)}
-            e = {"q": m.local_quats[k1], "r": m.root_pos[k1], "c": np.zeros(4)}
+            s = {"q": m.local_quats[k0], "r": m.root_pos[k0], "c": keyframe_contacts(m, k0, vf, "start")}
+            e = {"q": m.local_quats[k1], "r": m.root_pos[k1], "c": keyframe_contacts(m, k1, vf, "end")}
             for d, ks, fr in ((s, BEFORE, (k0 - 1, k0 - 2)), (e, AFTER, (k1 + 1, k1 + 2))):
                 if 0 <= min(fr) and max(fr) < m.num_frames:     # the frames beside the keyframes, as infill passes them
                     d.update(zip(ks, (m.local_quats[fr[0]], m.root_pos[fr[0]], m.local_quats[fr[1]],

@@ -154,14 +154,25 @@ def phase_labels(contacts: np.ndarray, half_window: int = 15) -> np.ndarray:
     return out
 
 
-def keyframe_contacts(motion, frame: int, velfactor: float) -> np.ndarray:
-    """(4,) foot contacts of one frame, from its displacement to the next frame (previous for the last)."""
+def keyframe_contacts(motion, frame: int, velfactor: float, side: str | None = None) -> np.ndarray:
+    """(4,) foot contacts of one frame, from its displacement to the next frame (previous for the last).
+
+    side: ``"start"`` / ``"end"`` for a keyframe that starts / ends a fill, whose frames are never read: a start
+    keyframe's displacement is from the frame before it, an end keyframe's to the frame after it; with no such
+    frame the feet count as still (every foot in contact)."""
     from inbetween_jax.data.features import foot_contacts
     from inbetween_jax.geometry import forward_kinematics
     n = motion.num_frames
-    if n < 2:
+    if side not in (None, "start", "end"):
+        raise ValueError(f"side must be None, 'start' or 'end', not {side!r}")
+    if side == "start":
+        a, b = (frame - 1, frame) if frame >= 1 else (frame, frame)
+    elif side == "end":
+        a, b = (frame, frame + 1) if frame + 1 < n else (frame, frame)
+    elif n < 2:
         return np.zeros(4, np.float32)
-    a, b = (frame, frame + 1) if frame + 1 < n else (frame - 1, frame)
+    else:
+        a, b = (frame, frame + 1) if frame + 1 < n else (frame - 1, frame)
     _, gp = forward_kinematics(motion.local_quats[[a, b]], motion.local_pos[[a, b]], motion.skeleton.parents)
     return foot_contacts(gp[:, list(motion.skeleton.foot_joints())], velfactor)[0]
 

@@ -349,8 +349,8 @@ def infill(args, run):
     else:
         fa = tuple(trained.extra["forward_axis"]) if "forward_axis" in trained.extra else tuple(ref.forward_axis())
         vf = trained.extra.get("contact_velfactor", GENERIC_CONTACT_VELFACTOR)
-    start = {"q": sm.local_quats[sf], "r": sm.root_pos[sf], "c": keyframe_contacts(sm, sf, vf)}
-    end = {"q": em.local_quats[ef], "r": em.root_pos[ef], "c": keyframe_contacts(em, ef, vf)}
+    start = {"q": sm.local_quats[sf], "r": sm.root_pos[sf], "c": keyframe_contacts(sm, sf, vf, "start")}
+    end = {"q": em.local_quats[ef], "r": em.root_pos[ef], "c": keyframe_contacts(em, ef, vf, "end")}
     m = trained.cfg.model
     past = m.uses_past_frame and sf >= 1
     if past or (m.context_base and sf >= 2):        # the frames before the start keyframe: its motion continued

@@ -1,7 +1,8 @@
-"""``inbetween infill --model cae`` never reads the frames it replaces: on a validation subject's walk whose gap frames
-are swapped for other motion, the features of every known frame, the gate's and the match's scores and the whole
-output are the same as with the captured frames; the first velocity after a gap is the next step's; the frame-rate
-conversion of the gaps leaves no known frame interpolated from a gap frame."""
+"""``inbetween infill`` never reads the frames it replaces: on a validation subject's walk whose gap frames (CAE) or
+frames between the keyframes (S-CVAE) are swapped for other motion, the features of every known frame, the gate's
+and the match's scores and the whole output are the same as with the captured frames; the first velocity after a
+gap is the next step's; the frame-rate conversion of gaps and keyframes leaves no known frame interpolated from a
+frame of the fill; a keyframe's foot contacts come from its side of the fill."""
 from __future__ import annotations
 
 import dataclasses
@@ -124,14 +125,7 @@ def test_cli_output_is_the_same_whatever_the_gap_holds(tmp_path, capsys):
     """The whole user path (a raw 120 Hz, 43-joint validation walk; resampled to 30 fps, joints matched, filled,
     expanded, written): a file whose gap frames hold the walk played backwards gives the same BVH and infill.json
     scores as the captured file."""
-    raw = os.path.join(SHARED_DATA, "cmu_bvh", "12_02.bvh")
-    if not os.path.isfile(raw):
-        pytest.skip("raw CMU BVH not found")
-    m = read_bvh(raw)
-    lq, lp = np.array(m.local_quats), np.array(m.local_pos)
-    lq[201:322], lp[201:322] = lq[::-1][201:322], lp[::-1][201:322]
-    write_bvh(tmp_path / "captured.bvh", m)
-    write_bvh(tmp_path / "broken.bvh", dataclasses.replace(m, local_quats=lq, local_pos=lp))
+    _swapped(tmp_path, 201, 322)
     outs = []
     for name in ("captured", "broken"):
         assert main(["infill", "--model", "cae", "--bvh", str(tmp_path / f"{name}.bvh"), "--gaps", "201:322",
@@ -140,3 +134,50 @@ def test_cli_output_is_the_same_whatever_the_gap_holds(tmp_path, capsys):
         outs.append((read_bvh(tmp_path / name / f"{name}_filled.bvh").global_positions(), info["gaps_ood"]))
     np.testing.assert_array_equal(outs[0][0], outs[1][0])
     assert outs[0][1] == outs[1][1]
+
+
+def _swapped(tmp_path, lo, hi):
+    """The raw 120 Hz validation walk 12_02 written as it is and with frames lo..hi-1 swapped for the walk played
+    backwards: two BVH paths."""
+    raw = os.path.join(SHARED_DATA, "cmu_bvh", "12_02.bvh")
+    if not os.path.isfile(raw):
+        pytest.skip("raw CMU BVH not found")
+    m = read_bvh(raw)
+    lq, lp = np.array(m.local_quats), np.array(m.local_pos)
+    lq[lo:hi], lp[lo:hi] = lq[::-1][lo:hi], lp[::-1][lo:hi]
+    write_bvh(tmp_path / "captured.bvh", m)
+    write_bvh(tmp_path / "broken.bvh", dataclasses.replace(m, local_quats=lq, local_pos=lp))
+    return tmp_path / "captured.bvh", tmp_path / "broken.bvh"
+
+
+def test_scvae_cli_output_is_the_same_whatever_lies_between_the_keyframes(tmp_path, capsys):
+    """Keyframes at file frames 401 and 483 (120 Hz; converted frames 100 and 121), two samples: the frames between
+    them do not change the output (before: up to 13 cm, through the start keyframe's foot contacts)."""
+    files = _swapped(tmp_path, 402, 483)
+    outs = []
+    for path in files:
+        out = tmp_path / ("out_" + path.stem)
+        assert main(["infill", "--model", "scvae", "--start", f"{path}:401", "--end", f"{path}:483", "--frames", "20",
+                     "--samples", "2", "--out", str(out)]) == 0, capsys.readouterr().err
+        outs.append([read_bvh(out / f).global_positions() for f in sorted(os.listdir(out)) if f.endswith(".bvh")])
+    assert len(outs[0]) == 2
+    for a, b in zip(*outs):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_keyframe_contacts_read_their_own_side():
+    """A start keyframe's contacts come from the step into it, an end keyframe's from the step out of it; with no
+    such frame, feet count as still."""
+    from inbetween_jax.data.datasets import GENERIC_CONTACT_VELFACTOR
+    from inbetween_jax.models.scvae.features import keyframe_contacts
+    walk = [m for m in load_motions("cmu", "val-subjects") if os.path.basename(str(m.source)) == "12_02.bvh"][0]
+    vf = GENERIC_CONTACT_VELFACTOR
+    for f in range(2, 28):
+        before = walk.slice(0, f + 1)                       # nothing after the start keyframe f
+        np.testing.assert_array_equal(keyframe_contacts(before, f, vf, "start"), keyframe_contacts(walk, f, vf, "start"))
+        after = walk.slice(f, 60)                           # nothing before the end keyframe
+        np.testing.assert_array_equal(keyframe_contacts(after, 0, vf, "end"), keyframe_contacts(walk, f, vf, "end"))
+    assert keyframe_contacts(walk, 0, vf, "start").tolist() == [1.0] * 4                # the file's first frame
+    assert keyframe_contacts(walk, walk.num_frames - 1, vf, "end").tolist() == [1.0] * 4  # and its last
+    moving = [keyframe_contacts(walk, f, vf, "start") for f in range(1, 60)]
+    assert 0 < np.mean(moving) < 1                          # a walk: some feet move, some stand
