@@ -137,17 +137,39 @@ def run(source: str | None, results_dir: str, run_dir: str | None, quick: bool =
     names = [m.source for m in motions for s in range(0, m.num_frames - proto.CLIP_LENGTH + 1, proto.CLIP_STRIDE)]
     from inbetween_jax.models.cae.calibrate import per_window_rows
     wc = per_window_rows(positions, names[:len(x)], methods, _data_name(src), runs, models)
+    wc += in_file_rows(models, runs, motions, src, quick)
     result["rows"] += wc
     result["markdown"] += "\n\n" + "\n\n".join(
         worst_case_markdown([r for r in wc if r["base"] == base and r["split"] == split],
-                            f"CAE per clip and gap position, {split}")
-        for base in ("the Hermite fill", "linear fill") for split in dict.fromkeys(r["split"] for r in wc))
+                            f"CAE per {'gap' if 'inside a file' in split else 'clip and gap position'}, {split}")
+        for base in ("the Hermite fill", "linear fill", "straight lines")
+        for split in dict.fromkeys(r["split"] for r in wc))
     os.makedirs(results_dir, exist_ok=True)
     with open(os.path.join(results_dir, "cae_bench.json"), "w") as fh:
         json.dump({k: v for k, v in result.items() if k != "markdown"}, fh, indent=1)
     with open(os.path.join(results_dir, "cae_bench.md"), "w") as fh:
         fh.write(result["markdown"])
     return result
+
+
+def in_file_rows(models, runs, test_motions, source: str, quick: bool) -> list:
+    """Per-gap rows of each run inside a file (:mod:`.in_file`: ``inbetween infill``'s own path, gate and motion
+    matching included) on the test motions and the run's validation split of the run's own training source
+    (the embedded clips are too short for 1-2 s gaps): ratio to its pre-fill ("the Hermite fill") and to straight
+    lines, splits ``"test, inside a file"`` / ``"validation, inside a file"``."""
+    from inbetween_jax.evaluation.worst_case import worst_case_rows
+    from inbetween_jax.models.cae.in_file import gap_records
+    out = []
+    for v, model in models.items():
+        val = _val_motions(runs[v].data.get("source") or source, run_val_split(runs[v]))
+        for split, motions in (("test", test_motions), ("validation", val)):
+            recs = gap_records(model, motions, limit=8 if quick else None)
+            for key, base in (("ratio", "the Hermite fill"), ("x_straight", "straight lines")):
+                rows = worst_case_rows([dict(r, ratio=r[key]) for r in recs], "per_window", _data_name(source),
+                                       "cae", base, f"{split}, inside a file")
+                share = float(np.mean([r["matched"] for r in recs])) if recs else 0.0
+                out += [dict(r, variant=v, matched_share=round(share, 3)) for r in rows]
+    return out
 
 
 VAL_METRIC = "val gap error / linear fill's"   # the name selection.json records for :func:`val_score`

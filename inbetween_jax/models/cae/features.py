@@ -222,8 +222,9 @@ def to_global(y_norm, normalizer: Normalizer, num_joints: int, ref0, yaw0: float
         seg_ref, seg_yaw = integrate_root(vy[start:b + 1] if b < t_len else vy[start:b],
                                           ref[start] if a > 0 else ref0, yaw[start] if a > 0 else yaw0)
         n = b - a
-        if b < t_len:  # spread the mismatch at the known frame b over the gap
-            w = (np.arange(1, n + 1) / (n + 1))[:, None]
+        if b < t_len:  # spread the mismatch at the known frame b over the gap (a leading gap: the whole of it,
+            # so the path hangs from frame b and never from frame 0, which lies in the gap)
+            w = (np.arange(1, n + 1) / (n + 1))[:, None] if a > 0 else np.ones((n, 1))
             d_ref, d_yaw = ref[b] - seg_ref[-1], yaw[b] - seg_yaw[-1]
             seg_ref, seg_yaw = seg_ref[:-1], seg_yaw[:-1]
         else:

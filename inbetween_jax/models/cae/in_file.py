@@ -1,0 +1,58 @@
+"""The CAE inside a file, as ``inbetween infill --model cae`` fills it: per gap, the error of
+:func:`~inbetween_jax.models.cae.infer.process_motion`'s global joint positions (gate, motion matching and root bound
+as the run's config says) over its base's, the run's non-learned pre-fill through the same root path (the limited
+cubic Hermite for ``model.fill=hermite``), and over straight lines between the global joint positions beside the
+gap.  The bench writes these as ``per_window`` rows of its own split names (``"test, inside a file"`` /
+``"validation, inside a file"``).
+
+    gap_records(model, motions, seconds=(1, 2)) -> list of {"name", "frames", "ratio", "x_straight", "matched"}
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["gap_records", "SECONDS", "MARGIN_FRAMES"]
+
+SECONDS = (1, 2)          # gap lengths, as the validation choice of the match (experiments/cae_motion_match.py)
+MARGIN_FRAMES = 10        # known frames kept before the first gap and after the last
+
+
+def gap_records(model, motions, seconds=SECONDS, limit: int | None = None) -> list:
+    """One record per gap: every ``max(g, 30)`` frames of each motion (at its own rate), ``g`` the gap length in
+    frames; ``limit`` caps the gaps per length (quick benches).  Motions must be on the model's skeleton."""
+    from inbetween_jax.geometry import forward_kinematics
+    from inbetween_jax.models.cae.features import body_frame_features, to_global
+    from inbetween_jax.models.cae.gate import base_fill
+    from inbetween_jax.models.cae.infer import process_motion
+    from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
+    j = model.num_joints
+    bound = float(getattr(model.cfg.model, "root_bound", 0.0)) * 100.0
+    out = []
+    for sec in seconds:
+        n_len = 0
+        for m in motions:
+            g = int(round(sec * float(m.fps)))
+            gp = forward_kinematics(m.local_quats, m.local_pos, m.skeleton.parents)[1]
+            for lo in range(MARGIN_FRAMES, m.num_frames - g - MARGIN_FRAMES, max(g, 30)):
+                if limit is not None and n_len >= limit:
+                    break
+                n_len += 1
+                fm = gap_frames(m.num_frames, [(lo, lo + g)])
+                res = process_motion(model, m, [(lo, lo + g)])
+                feats = body_frame_features(m, known=fm > 0.5)
+                mask = frame_mask_image(fm, j)
+                x = model.normalizer(feats.features).T.astype(np.float32)
+                base = to_global(base_fill(model, (x * mask)[None], mask[None])[0], model.normalizer, j, feats.ref0,
+                                 feats.yaw0, known_feats=feats.features, frame_mask=fm, root_bound=bound,
+                                 known_track=(feats.ref, feats.yaw))
+                w = (np.arange(1, g + 1) / (g + 1))[:, None, None]
+                straight = gp[lo - 1] + w * (gp[lo + g] - gp[lo - 1])
+
+                def err(pos):
+                    return float(np.linalg.norm(pos[lo:lo + g] - gp[lo:lo + g], axis=-1).mean())
+                e = err(res["positions"])
+                out.append({"name": str(m.source), "frames": g, "ratio": e / max(err(base), 1e-9),
+                            "x_straight": e / max(float(np.linalg.norm(straight - gp[lo:lo + g], axis=-1).mean()),
+                                                  1e-9),
+                            "matched": any(r.get("match_weight", 0.0) > 0.5 for r in res["gaps_ood"])})
+    return out
