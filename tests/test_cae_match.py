@@ -71,6 +71,14 @@ def test_a_gap_cut_from_a_bank_clip_gets_that_clip_back(shipped, motions):
     np.testing.assert_allclose(fill, x[:, a:b], atol=2e-3)
     # a gap whose context is not there (too near the clip's start) is not matched
     assert match_gap(bank, xm, ref, yaw, MARGIN - 1, MARGIN + 20, k=1) == (None, float("inf"))
+    # a bank of two files with the clip's own file excluded (leaving a subject out): the other file's windows
+    two = MatchBank.from_transition_bank(TransitionBank.from_motions([m, motions[2]], m.skeleton.forward_axis()),
+                                         shipped.skeleton, shipped.normalizer, shipped.num_joints)
+    assert two.names == [os.path.basename(str(x.source)) for x in (m, motions[2])]
+    _, d_own = match_gap(two, xm, ref, yaw, a, b, k=1)
+    other, d_other = match_gap(two, xm, ref, yaw, a, b, k=1, exclude=np.array([True, False]))
+    assert d_own < 1e-6 < d_other and np.abs(other - x[:, a:b]).max() > 2e-3
+    assert match_gap(two, xm, ref, yaw, a, b, k=1, exclude=np.array([True, True])) == (None, float("inf"))
 
 
 def test_mirror_copy_matches_the_mirrored_motion(shipped, motions):

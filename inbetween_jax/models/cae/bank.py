@@ -66,6 +66,7 @@ class MatchBank:
     track (``ref`` (T, 2), ``yaw`` (T,)).  Candidate windows are indexed per gap length (:meth:`index`)."""
     clips: list
     tracks: list
+    names: list = dataclasses.field(default_factory=list)      # the source file of each clip
     _cache: dict = dataclasses.field(default_factory=dict, repr=False, compare=False)
 
     @classmethod
@@ -81,8 +82,8 @@ class MatchBank:
             raise UserError(f"motion bank: {bank.num_joints} joints on another skeleton than the run's "
                             f"{num_joints}")
         perm, sign = mirror_rows(skeleton) if mirror else (None, None)
-        clips, tracks = [], []
-        for s, e in zip(bank.clip_starts[:-1], bank.clip_starts[1:]):
+        clips, tracks, names = [], [], []
+        for ci, (s, e) in enumerate(zip(bank.clip_starts[:-1], bank.clip_starts[1:])):
             lp = local_positions(bank.root_pos[s:e].astype(np.float64), bank.offsets)
             gp = forward_kinematics(bank.local_quats[s:e].astype(np.float64), lp, bank.parents)[1]
             yaw = np.unwrap(smoothed_facing_yaw(gp, skeleton))
@@ -97,9 +98,10 @@ class MatchBank:
                 for fv, rv, yv in variants:
                     clips.append(np.ascontiguousarray(normalizer(fv.astype(np.float32)).T.astype(np.float32)))
                     tracks.append((rv, yv))
+                    names.append(str(bank.names[ci]))
         if not clips:
             raise UserError("motion bank: no clip is long enough to match a gap in")
-        return cls(clips, tracks)
+        return cls(clips, tracks, names)
 
     def index(self, length: int):
         """``(contexts (N, C), squared norms (N,), displacements (N, 3), where (N, 2) [clip, start])`` of every
@@ -140,10 +142,12 @@ def _played_at(feats, ref, yaw, tempo: float):
     return (f, np.stack([np.interp(t, src, ref[:, 0]), np.interp(t, src, ref[:, 1])], 1), np.interp(t, src, yaw))
 
 
-def match_gap(bank: MatchBank, x_masked, ref, yaw, a: int, b: int, k: int, disp_weight: float = 1.0):
+def match_gap(bank: MatchBank, x_masked, ref, yaw, a: int, b: int, k: int, disp_weight: float = 1.0, exclude=None):
     """The matched fill of gap ``[a, b)`` of one normalised clip image ``x_masked`` (D, T) whose root track is
     ``ref`` (T, 2) / ``yaw`` (T,) (known frames only are read).  Returns ``(fill (D, b - a), distance)``, or
-    ``(None, inf)`` when the gap lacks :data:`MARGIN` known frames on a side or no training window is that long."""
+    ``(None, inf)`` when the gap lacks :data:`MARGIN` known frames on a side or no training window is that long.
+    exclude: optional (num clips,) bool, clips never matched (e.g. the query's own subject, to score the bank's
+    subjects leaving each out)."""
     from inbetween_jax.models.cae.gate import gap_context
     x = np.asarray(x_masked, np.float32)
     g = b - a
@@ -157,6 +161,10 @@ def match_gap(bank: MatchBank, x_masked, ref, yaw, a: int, b: int, k: int, disp_
     qd = _displacement(np.asarray(ref, np.float64), np.asarray(yaw, np.float64), np.array([a]), np.array([b]))[0]
     d = (np.maximum(sq - 2.0 * (ctx @ q.astype(np.float32)) + q @ q, 0.0) / len(q)
          + disp_weight * np.sum((disp - qd) ** 2, 1))
+    if exclude is not None:
+        d = np.where(np.asarray(exclude, bool)[where[:, 0]], np.inf, d)
+        if not np.isfinite(d).any():
+            return None, float("inf")
     best = np.argsort(d)[:max(int(k), 1)]
     w = (np.arange(1, g + 1) / (g + 1))[None]
     fills = []
