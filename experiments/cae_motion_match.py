@@ -167,8 +167,11 @@ if a.figure:
                                   (axes[1], "departure", "departure from the fill / body travel beside the gap",
                                    a.departure)):
         for used, colour, name in ((True, "tab:blue", "departure <= limit"), (False, "tab:red", "departure > limit")):
-            pts = [x for x in rs if (x["departure"] <= a.departure) == used]
-            ax.scatter([x[key] for x in pts], [x["at_one"] for x in pts], s=12, c=colour, label=name)
+            for held, marker, size in (("validation", "o", 12), ("fit, own subject left out", ".", 4)):
+                pts = [x for x in rs if (x["departure"] <= a.departure) == used and x["set"] == held]
+                if pts:
+                    ax.scatter([x[key] for x in pts], [x["at_one"] for x in pts], s=size, c=colour, marker=marker,
+                               alpha=1.0 if held == "validation" else 0.35, label=f"{name} ({held})")
         ax.axhline(1.0, color="k", lw=0.8)
         ax.set_xscale("log")
         ax.set_yscale("log")
@@ -177,7 +180,9 @@ if a.figure:
             ax.axvline(x_, color="tab:red", ls="--", lw=0.8)
     axes[0].set_ylabel("error with the match whole / the fill's")
     axes[0].legend(fontsize=8)
-    fig.suptitle(f"CAE motion matching, validation subjects ({len(rs)} gaps, k {configs[0][0]}, disp {configs[0][1]})")
+    sets = " + ".join(dict.fromkeys(x["set"] for x in rs))
+    fig.suptitle(f"CAE motion matching: {sets} ({len(rs)} gaps, k {configs[0][0]}, disp {configs[0][1]})",
+                 fontsize=9)
     fig.tight_layout()
     save_atomic(a.figure, lambda f: fig.savefig(f, format="png", dpi=110))
     print("wrote", a.figure)
