@@ -46,7 +46,8 @@ p.add_argument("--leaky", action="store_true",
                help="features of the whole file, gap frames included (the evaluation before 2026-12-05)")
 p.add_argument("--fit-subjects", action="store_true",
                help="also the fit subjects' gaps, each matched against the bank without its own subject's files "
-                    "(everyday, dance, martial arts, ... which the validation subjects lack); the gate is chosen on all")
+                    "(everyday, dance, martial arts, ... which the validation subjects lack); the gate is chosen "
+                    "on all")
 p.add_argument("--departure", type=float, default=0.5,
                help="matches departing further from the fill (bank.departure) are never used")
 a = p.parse_args()
@@ -102,10 +103,13 @@ for m, exclude in motions:
                     at.append(np.linalg.norm(pos[lo:lo + g] - gp[lo:lo + g], axis=-1).mean() / base_err)
                     steps.append(float(lift_offs(pos[span], (feet[0], feet[2]))))
                 dep = departure(y[:, lo:lo + g], mf, feats.global_pos, lo, lo + g, model.normalizer, j)
+                used = dep <= a.departure
                 records[(k, disp)].append({
                     "set": "validation" if exclude is None else "fit, own subject left out",
-                    "subject": subject(m.source), "group": f"{group}/{g}", "at_one": at[-1], "score": dist, "departure": dep, "ratios_at": at if dep <= a.departure else [1.0] * len(at), "base_x_linear": base_err / lin_err,
-                    "steps": (steps if dep <= a.departure else [steps[0]] * len(steps), float(lift_offs(base_pos[span], (feet[0], feet[2]))),
+                    "subject": subject(m.source), "group": f"{group}/{g}", "at_one": at[-1], "score": dist,
+                    "departure": dep, "ratios_at": at if used else [1.0] * len(at), "base_x_linear": base_err / lin_err,
+                    "steps": (steps if used else [steps[0]] * len(steps),
+                              float(lift_offs(base_pos[span], (feet[0], feet[2]))),
                               float(lift_offs(gp[span], (feet[0], feet[2]))))})
 gates = {}
 for (k, disp), rs in records.items():
@@ -126,7 +130,8 @@ for (k, disp), rs in records.items():
     for subj in sorted(set(subjects)):
         out_ = subjects == subj
         fit = [x for x, o in zip(rs, out_) if not o]
-        g_ = calibrate_gate([x["score"] for x in fit], [x["ratios_at"] for x in fit], groups=[x["group"] for x in fit])[0]
+        g_ = calibrate_gate([x["score"] for x in fit], [x["ratios_at"] for x in fit],
+                            groups=[x["group"] for x in fit])[0]
         held[out_] = gated_ratio([x["ratios_at"] for x, o in zip(rs, out_) if o],
                                  g_.weight([x["score"] for x, o in zip(rs, out_) if o]))
     sh = summarise(list(held))
@@ -140,7 +145,8 @@ for (k, disp), rs in records.items():
               f"open {np.mean(wts[sel] > 0.5):.2f}; lift-offs per gap gated {st[:, 0].mean():.2f} "
               f"fill {st[:, 1].mean():.2f} capture {st[:, 2].mean():.2f}")
     mc = model.cfg.model
-    shipped = gated_ratio([x["ratios_at"] for x in rs], [match_weight(x["score"], mc.match_lo, mc.match_hi) for x in rs])
+    shipped = gated_ratio([x["ratios_at"] for x in rs],
+                          [match_weight(x["score"], mc.match_lo, mc.match_hi) for x in rs])
     for name in dict.fromkeys(x["set"] for x in rs):
         sel = np.array([x["set"] == name for x in rs])
         for label, rr in (("this gate", r), (f"the run's lo {mc.match_lo} hi {mc.match_hi}", shipped)):

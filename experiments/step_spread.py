@@ -44,11 +44,12 @@ def main() -> None:
     medians = []
     with tempfile.TemporaryDirectory() as cache:
         for i in range(a.runs):
-            out = subprocess.run([sys.executable, __file__, "--child", cache, "--width", a.width, "--reps", str(a.reps)],
-                                 check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1]
+            cmd = [sys.executable, __file__, "--child", cache, "--width", a.width, "--reps", str(a.reps)]
+            out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1]
             r = json.loads(out)
             medians.append(r["step_ms"])
-            print(f"run {i + 1}: median {r['step_ms']:.0f} ms (calls {min(r['calls_ms']):.0f}-{max(r['calls_ms']):.0f}), "
+            calls = f"{min(r['calls_ms']):.0f}-{max(r['calls_ms']):.0f}"
+            print(f"run {i + 1}: median {r['step_ms']:.0f} ms (calls {calls}), "
                   f"{r['gflops']:.1f} GFLOP/s of {r['step_gflop']:.1f} GFLOP per step, peak {r['peak_gflops']:.1f}: "
                   f"{100 * r['gflops'] / r['peak_gflops']:.0f} % of peak", flush=True)
     print(f"spread of the medians (max / min over {a.runs} runs): {max(medians) / min(medians):.3f}")

@@ -30,7 +30,7 @@ def test_gaussian_lowpass_over_known_frames_only():
     ndimage = pytest.importorskip("scipy.ndimage")
     pos = np.asarray(load_motions("embedded", "test")[0].global_positions()[:120, :4], np.float64)   # (T, 4, 3)
     known = np.ones(120, bool)
-    known[40:75] = False                                                      # a 35-frame gap: frames 53-62 out of reach
+    known[40:75] = False                                      # a 35-frame gap: frames 52-62 out of reach
     known[:2] = False                                                         # and the first two frames
     m = known.astype(np.float64)[:, None, None]
     with np.errstate(invalid="ignore"):                                      # 0 / 0 out of reach

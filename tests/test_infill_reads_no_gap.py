@@ -183,7 +183,8 @@ def test_keyframe_contacts_read_their_own_side():
     vf = GENERIC_CONTACT_VELFACTOR
     for f in range(2, 28):
         before = walk.slice(0, f + 1)                       # nothing after the start keyframe f
-        np.testing.assert_array_equal(keyframe_contacts(before, f, vf, "start"), keyframe_contacts(walk, f, vf, "start"))
+        np.testing.assert_array_equal(keyframe_contacts(before, f, vf, "start"),
+                                      keyframe_contacts(walk, f, vf, "start"))
         after = walk.slice(f, 60)                           # nothing before the end keyframe
         np.testing.assert_array_equal(keyframe_contacts(after, 0, vf, "end"), keyframe_contacts(walk, f, vf, "end"))
     assert keyframe_contacts(walk, 0, vf, "start").tolist() == [1.0] * 4                # the file's first frame

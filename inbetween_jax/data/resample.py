@@ -74,9 +74,9 @@ def resample_motion(motion, fps: float = WORKING_FPS):
     """``motion`` (a :class:`~inbetween_jax.data.bvh.Motion`) at ``fps`` frames per second.
 
     The source rate is :func:`nominal_fps` of ``motion.frame_time`` (``fps`` is snapped the same way); when it
-    already equals ``fps`` the motion is returned unchanged.  Otherwise output frame ``k`` is time ``k / fps``: local rotations
-    (T, J, 4) slerped and local positions (T, J, 3) (root trajectory, animated position channels) linearly
-    interpolated between the neighbouring source frames; the result covers the source's duration
+    already equals ``fps`` the motion is returned unchanged.  Otherwise output frame ``k`` is time ``k / fps``:
+    local rotations (T, J, 4) slerped and local positions (T, J, 3) (root trajectory, animated position
+    channels) linearly interpolated between the neighbouring source frames; the result covers the source's duration
     (``floor((T - 1) * fps / src_fps) + 1`` frames) and has ``frame_time = 1 / fps``.
     """
     fps = float(fps)
