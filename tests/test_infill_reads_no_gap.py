@@ -1,8 +1,9 @@
 """``inbetween infill`` never reads the frames it replaces: on a validation subject's walk whose gap frames (CAE) or
-frames between the keyframes (S-CVAE) are swapped for other motion, the features of every known frame, the gate's
-and the match's scores and the whole output are the same as with the captured frames; the first velocity after a
-gap is the next step's; the frame-rate conversion of gaps and keyframes leaves no known frame interpolated from a
-frame of the fill; a keyframe's foot contacts come from its side of the fill."""
+frames between the keyframes (S-CVAE; a salsa pair's for the interaction model) are swapped for other motion, the
+features of every known frame, the gate's and the match's scores and the whole output are the same as with the
+captured frames; the first velocity after a gap is the next step's; the frame-rate conversion of gaps and keyframes
+leaves no known frame interpolated from a frame of the fill; a keyframe's foot contacts come from its side of the
+fill."""
 from __future__ import annotations
 
 import dataclasses
@@ -191,3 +192,27 @@ def test_keyframe_contacts_read_their_own_side():
     assert keyframe_contacts(walk, walk.num_frames - 1, vf, "end").tolist() == [1.0] * 4  # and its last
     moving = [keyframe_contacts(walk, f, vf, "start") for f in range(1, 60)]
     assert 0 < np.mean(moving) < 1                          # a walk: some feet move, some stand
+
+
+def test_interaction_cli_output_is_the_same_whatever_lies_between_context_and_keypose(tmp_path, capsys):
+    """Both dancers of salsa take 01 (context up to frame 100, keypose at 131): the frames between do not change
+    either dancer's two samples."""
+    pairs = os.path.join(SHARED_DATA, "cmu_pairs")
+    if not os.path.isfile(os.path.join(pairs, "60_01_scaled.bvh")):
+        pytest.skip("CMU salsa pairs not found")
+    for who in ("60", "61"):
+        m = read_bvh(os.path.join(pairs, f"{who}_01_scaled.bvh"))
+        write_bvh(tmp_path / f"{who}_captured.bvh", m)
+        lq, lp = np.array(m.local_quats), np.array(m.local_pos)
+        lq[101:131], lp[101:131] = lq[::-1][101:131], lp[::-1][101:131]
+        write_bvh(tmp_path / f"{who}_broken.bvh", dataclasses.replace(m, local_quats=lq, local_pos=lp))
+    outs = []
+    for kind in ("captured", "broken"):
+        a, b, out = tmp_path / f"60_{kind}.bvh", tmp_path / f"61_{kind}.bvh", tmp_path / f"out_{kind}"
+        assert main(["infill", "--model", "interaction", "--a", f"{a}:100", "--b", f"{b}:100", "--key-a", f"{a}:131",
+                     "--key-b", f"{b}:131", "--frames", "30", "--samples", "2", "--out", str(out)]) == 0, \
+            capsys.readouterr().err
+        outs.append([read_bvh(out / f).global_positions() for f in sorted(os.listdir(out)) if f.endswith(".bvh")])
+    assert len(outs[0]) == 4
+    for x, y in zip(*outs):
+        np.testing.assert_array_equal(x, y)
