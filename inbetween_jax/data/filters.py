@@ -34,9 +34,8 @@ def gaussian_lowpass(x, sigma: float, axis: int, dtype=np.float32, known=None) -
     out = smooth(np.where(m, x, 0.0)) / np.maximum(den, 1e-300)
     has = den > 1e-12
     if not has.all():                                   # deep inside a long unknown run: the nearest result
-        idx = np.flatnonzero(has)
-        near = idx[np.clip(np.searchsorted(idx, np.arange(t_len)), 0, len(idx) - 1)]
-        left = idx[np.clip(np.searchsorted(idx, np.arange(t_len)) - 1, 0, len(idx) - 1)]
-        near = np.where(np.abs(left - np.arange(t_len)) <= np.abs(near - np.arange(t_len)), left, near)
-        out = out[..., near]
+        idx, t = np.flatnonzero(has), np.arange(t_len)
+        pos = np.searchsorted(idx, t)
+        right, left = idx[np.minimum(pos, len(idx) - 1)], idx[np.maximum(pos - 1, 0)]
+        out = out[..., np.where(np.abs(left - t) <= np.abs(right - t), left, right)]
     return np.moveaxis(out, -1, axis).astype(dtype)

@@ -17,6 +17,7 @@ WORKING_FPS = 30.0
 # BVH writers round "Frame Time" (0.008333 for 120 Hz, 0.033333 for 30 Hz); a rate within this relative
 # distance of an integer is taken as that integer (29.97 Hz video rates count as 30).
 _NOMINAL_RTOL = 2e-3
+FRAME_TOL = 1e-3        # frames: a rate stored a little off (30.000012) must not move a frame number by one
 
 
 def nominal_fps(frame_time: float) -> float:
@@ -101,4 +102,4 @@ def resample_motion(motion, fps: float = WORKING_FPS):
     return dataclasses.replace(motion, local_quats=_sign_continuous(quats), local_pos=pos, frame_time=1.0 / fps)
 
 
-__all__ = ["WORKING_FPS", "nominal_fps", "resample_motion", "sample_times", "slerp"]
+__all__ = ["WORKING_FPS", "FRAME_TOL", "nominal_fps", "resample_motion", "sample_times", "slerp"]

@@ -182,7 +182,8 @@ def to_frame(prep: Prepared, frame: int, side: str | None = None) -> int:
     u = frame * prep.ratio
     if side not in (None, "start", "end"):
         raise ValueError(f"side must be None, 'start' or 'end', not {side!r}")
-    k = np.floor(u + 1e-3) if side == "start" else np.ceil(u - 1e-3) if side == "end" else round(u)
+    from inbetween_jax.data.resample import FRAME_TOL
+    k = np.floor(u + FRAME_TOL) if side == "start" else np.ceil(u - FRAME_TOL) if side == "end" else round(u)
     return min(max(int(k), 0), prep.full.num_frames - 1)
 
 
@@ -199,7 +200,7 @@ def prepare(motion, path: str, ckpt_skel, fps=None) -> Prepared:
         src = nominal_fps(motion.frame_time)
         full = resample_motion(motion, float(fps))
         if full is not motion:
-            ratio = nominal_fps(1.0 / float(fps)) / src          # as resample_motion snaps it
+            ratio = 1.0 / (full.frame_time * src)             # the rate resample_motion produced (snapped)
             parts.append(f"{src:g} fps resampled to the checkpoint's {float(fps):g} fps")
     match, out = None, full
     if ckpt_skel is not None and not full.skeleton.same_topology(ckpt_skel):

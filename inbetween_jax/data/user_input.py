@@ -178,11 +178,11 @@ def resampled_gaps(gaps, ratio: float, num_frames: int, text: str, path: str) ->
     interpolated from a gap frame is in the gap, so no known frame reads one: the gap starts at the first frame
     after file time ``a - 1`` and ends at the first frame at or after file time ``b``.  A gap that falls between
     two resampled frames keeps the nearest one; gaps are merged again where they now touch."""
+    from inbetween_jax.data.resample import FRAME_TOL
     out = []
-    eps = 1e-3                       # a frame rate stored as e.g. 29.99999 must not move a gap end by a frame
     for a, b in gaps:
-        lo = 0 if a == 0 else int(np.floor((a - 1) * ratio + eps)) + 1
-        hi = int(np.ceil(b * ratio - eps))
+        lo = 0 if a == 0 else int(np.floor((a - 1) * ratio + FRAME_TOL)) + 1
+        hi = int(np.ceil(b * ratio - FRAME_TOL))
         if hi <= lo:                                   # between two resampled frames: the nearest one
             lo = int(round(0.5 * (a + b) * ratio))
             hi = lo + 1

@@ -30,8 +30,7 @@ import numpy as np
 
 from inbetween_jax.errors import UserError
 
-__all__ = ["BANK_FILE", "SWITCHES", "MatchBank", "match_enabled", "match_gap", "departure", "match_weight",
-           "root_track"]
+__all__ = ["BANK_FILE", "SWITCHES", "MatchBank", "match_enabled", "match_gap", "departure", "match_weight"]
 
 BANK_FILE = "bank.npz"
 SWITCHES = ("model.match_k", "model.match_lo", "model.match_hi", "model.match_disp",
@@ -43,12 +42,6 @@ CACHED_LENGTHS = 8             # gap lengths whose candidate contexts are kept
 
 def match_enabled(model_cfg) -> bool:
     return int(getattr(model_cfg, "match_k", 0)) > 0
-
-
-def root_track(features, num_joints: int, ref0, yaw0):
-    """(T, D) un-normalised CAE features -> the root's floor path (T, 2) and facing (T,) (integrated)."""
-    from inbetween_jax.models.cae.features import integrate_root, split_features
-    return integrate_root(split_features(np.asarray(features, np.float64), num_joints)[1], ref0, yaw0)
 
 
 def _displacement(ref, yaw, a, b) -> np.ndarray:

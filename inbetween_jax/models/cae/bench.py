@@ -164,11 +164,11 @@ def in_file_rows(models, runs, test_motions, source: str, quick: bool) -> list:
         val = _val_motions(runs[v].data.get("source") or source, run_val_split(runs[v]))
         for split, motions in (("test", test_motions), ("validation", val)):
             recs = gap_records(model, motions, limit=8 if quick else None)
+            share = round(float(np.mean([r["matched"] for r in recs])), 3) if recs else 0.0
             for key, base in (("ratio", "the Hermite fill"), ("x_straight", "straight lines")):
                 rows = worst_case_rows([dict(r, ratio=r[key]) for r in recs], "per_window", _data_name(source),
                                        "cae", base, f"{split}, inside a file")
-                share = float(np.mean([r["matched"] for r in recs])) if recs else 0.0
-                out += [dict(r, variant=v, matched_share=round(share, 3)) for r in rows]
+                out += [dict(r, variant=v, matched_share=share) for r in rows]
     return out
 
 
