@@ -15,7 +15,6 @@ Each subject is also scored with the thresholds chosen on the other validation s
 import argparse
 import os
 import collections
-import dataclasses
 
 import numpy as np
 
@@ -25,7 +24,7 @@ from inbetween_jax.data.activities import activity_group
 from inbetween_jax.evaluation.worst_case import summarise
 from inbetween_jax.geometry import forward_kinematics
 from inbetween_jax.metrics.steps import lift_offs
-from inbetween_jax.models.cae.bank import MatchBank, departure, match_gap, match_weight
+from inbetween_jax.models.cae.bank import MatchBank, departure, gate_distance, match_gap, match_weight, speed_beside
 from inbetween_jax.models.cae.features import body_frame_features, to_global
 from inbetween_jax.models.cae.infer import fill, load
 from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
@@ -41,13 +40,18 @@ p.add_argument("--seconds", default="1,2")
 p.add_argument("--tempos", default="1", help="the bank's clips also played at these speeds")
 p.add_argument("--mirror", action="store_true", help="the bank's clips' mirror images too")
 p.add_argument("--list", action="store_true", help="list every gap of the first config")
-p.add_argument("--figure", default=None, help="write the first config's calibration figure (PNG) here")
+p.add_argument("--figure", default=None, help="write the first config's calibration figure (PNG) here, against the "
+                                                "distance the run's gate reads and its lo / hi")
 p.add_argument("--leaky", action="store_true",
                help="features of the whole file, gap frames included (the evaluation before 2026-12-05)")
 p.add_argument("--fit-subjects", action="store_true",
                help="also the fit subjects' gaps, each matched against the bank without its own subject's files "
                     "(everyday, dance, martial arts, ... which the validation subjects lack); the gate is chosen "
                     "on all")
+p.add_argument("--dump", default=None, help="write every gap's record (JSON) here, for gates tried offline")
+p.add_argument("--speed-scales", default=None,
+               help="also try gates on the distance over (1 + root speed beside the gap / c), for these c "
+                    "(cm per frame): a match may lie farther where the body travels")
 p.add_argument("--departure", type=float, default=0.5,
                help="matches departing further from the fill (bank.departure) are never used")
 a = p.parse_args()
@@ -91,6 +95,7 @@ for m, exclude in motions:
                                  frame_mask=fm, root_bound=bound, known_track=(feats.ref, feats.yaw))
             base_pos = positions(y)
             base_err = np.linalg.norm(base_pos[lo:lo + g] - gp[lo:lo + g], axis=-1).mean()
+            beside = speed_beside(ref, lo, lo + g)                   # known frames only, cm per frame
             for k, disp in configs:
                 mf, dist = match_gap(bank, x * mask, ref, yaw, lo, lo + g, k, disp, exclude=exclude)
                 if mf is None:
@@ -107,10 +112,15 @@ for m, exclude in motions:
                 records[(k, disp)].append({
                     "set": "validation" if exclude is None else "fit, own subject left out",
                     "subject": subject(m.source), "group": f"{group}/{g}", "at_one": at[-1], "score": dist,
-                    "departure": dep, "ratios_at": at if used else [1.0] * len(at), "base_x_linear": base_err / lin_err,
+                    "departure": dep, "beside": beside, "ratios_at": at if used else [1.0] * len(at),
+                    "base_x_linear": base_err / lin_err,
                     "steps": (steps if used else [steps[0]] * len(steps),
                               float(lift_offs(base_pos[span], (feet[0], feet[2]))),
                               float(lift_offs(gp[span], (feet[0], feet[2]))))})
+if a.dump:
+    import json
+    with open(a.dump, "w") as f:
+        json.dump({f"{k},{d}": rs for (k, d), rs in records.items()}, f)
 gates = {}
 for (k, disp), rs in records.items():
     gate, summ = gates[(k, disp)] = calibrate_gate([r["score"] for r in rs], [r["ratios_at"] for r in rs],
@@ -146,7 +156,8 @@ for (k, disp), rs in records.items():
               f"fill {st[:, 1].mean():.2f} capture {st[:, 2].mean():.2f}")
     mc = model.cfg.model
     shipped = gated_ratio([x["ratios_at"] for x in rs],
-                          [match_weight(x["score"], mc.match_lo, mc.match_hi) for x in rs])
+                          [match_weight(gate_distance(x["score"], x["beside"], mc.match_speed_scale), mc.match_lo,
+                                        mc.match_hi) for x in rs])
     for name in dict.fromkeys(x["set"] for x in rs):
         sel = np.array([x["set"] == name for x in rs])
         for label, rr in (("this gate", r), (f"the run's lo {mc.match_lo} hi {mc.match_hi}", shipped)):
@@ -155,6 +166,24 @@ for (k, disp), rs in records.items():
             sm = summarise(list(rr[sel]))
             print(f"  {name}, {label}: {sm['windows']} gaps mean {sm['mean']:.3f} p90 {sm['p90']:.3f} "
                   f"max {sm['max']:.3f}; worst group {worst[1]} {worst[0]:.3f}")
+
+if a.speed_scales:                  # the distance relative to the body's speed beside the gap (known frames only)
+    rs = records[configs[0]]
+    ratios, groups = [x["ratios_at"] for x in rs], [x["group"] for x in rs]
+    subjects, val = np.array([x["subject"] for x in rs]), np.array([x["set"] == "validation" for x in rs])
+    for c in [float(v) for v in a.speed_scales.split(",")]:
+        sc = np.array([gate_distance(x["score"], x["beside"], c) for x in rs])
+        gate, summ = calibrate_gate(sc, ratios, groups=groups)
+        r = gated_ratio(ratios, gate.weight(sc))
+        held = np.zeros(len(rs))
+        for subj in sorted(set(subjects)):
+            o = subjects == subj
+            g_ = calibrate_gate(sc[~o], [x for x, k in zip(ratios, o) if not k],
+                                groups=[x for x, k in zip(groups, o) if not k])[0]
+            held[o] = gated_ratio([x for x, k in zip(ratios, o) if k], g_.weight(sc[o]))
+        print(f"distance / (1 + speed beside / {c}): lo {gate.lo:.5f} hi {gate.hi:.5f} (limits met: "
+              f"{summ['meets_limits']}); all {r.mean():.4f} max {r.max():.3f}; validation {r[val].mean():.3f}; fit "
+              f"{r[~val].mean():.4f}; leave one subject out: mean {held.mean():.4f} max {held.max():.3f}")
 
 if a.list:
     print("the first config's gaps, nearest first: ratio to the fill with the match whole, departure, distance")
@@ -168,8 +197,12 @@ if a.figure:
     import matplotlib.pyplot as plt
     from inbetween_jax.viz_frames import save_atomic
     rs = records[configs[0]]
+    sc_ = float(model.cfg.model.match_speed_scale)           # the run's gate: its distance, lo and hi
+    for x in rs:
+        x["gate_distance"] = gate_distance(x["score"], x["beside"], sc_)
+    dist_label = (f"match distance / (1 + speed beside / {sc_:g} cm per frame)" if sc_ > 0 else "match distance")
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
-    for ax, key, label, limit in ((axes[0], "score", "match distance (gate: lo / hi)", None),
+    for ax, key, label, limit in ((axes[0], "gate_distance", f"{dist_label} (the run's lo / hi)", None),
                                   (axes[1], "departure", "departure from the fill / body travel beside the gap",
                                    a.departure)):
         for used, colour, name in ((True, "tab:blue", "departure <= limit"), (False, "tab:red", "departure > limit")):
@@ -182,7 +215,7 @@ if a.figure:
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel(label)
-        for x_ in ([limit] if limit is not None else [gates[configs[0]][0].lo, gates[configs[0]][0].hi]):
+        for x_ in ([limit] if limit is not None else [model.cfg.model.match_lo, model.cfg.model.match_hi]):
             ax.axvline(x_, color="tab:red", ls="--", lw=0.8)
     axes[0].set_ylabel("error with the match whole / the fill's")
     axes[0].legend(fontsize=8)

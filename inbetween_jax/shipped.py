@@ -34,9 +34,11 @@ INFERENCE_SWITCHES = {"interaction": ("model.refiner", "model.latent_scale", "mo
                       "scvae": ("model.search", "model.bank_k", "model.bank_weight", "model.bank_tau", "model.ood_gate",
                                 "model.motion_temperature", "model.motion_spread", "model.bank_sample_weight",
                                 "model.bank_sample_gated", "model.context_base", "model.context_damping",
-                                "model.context_max_turn", "model.context_max_step", "model.timing_spread"),
+                                "model.context_max_turn", "model.context_max_step", "model.timing_spread",
+                                "model.timing_parts", "model.timing_spread_in_clip"),
                       "cae": ("model.mirror_average", "model.ood_gate", "model.root_bound", "model.match_k",
-                              "model.match_lo", "model.match_hi", "model.match_disp", "model.match_departure")}
+                              "model.match_lo", "model.match_hi", "model.match_disp", "model.match_departure",
+                              "model.match_speed_scale")}
 # Per model: the key-path prefixes of the train state that ``infer.load`` / inference use.
 KEEP = {"scvae": ("params", "stats"),                # generators + normalisation (disc, opt_g, opt_d dropped)
         "cae": ("params",),                          # opt_state dropped

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from inbetween_jax.data import load_motions
-from inbetween_jax.models.cae.bank import MARGIN, MatchBank, _played_at, match_gap, match_weight
+from inbetween_jax.models.cae.bank import (MARGIN, MatchBank, _played_at, gate_distance, match_gap, match_weight,
+                                           speed_beside)
 from inbetween_jax.models.cae.features import body_frame_features, mirror_rows
 from inbetween_jax.models.scvae.bank import TransitionBank
 from inbetween_jax.train.run import RunError
@@ -56,6 +57,29 @@ def test_match_weight_ramp():
     assert match_weight(0.3, 0.2, 0.4) == pytest.approx(0.5)
     assert match_weight(0.5, 0.2, 0.4) == 0.0
     assert match_weight(float("inf"), 0.2, 0.4) == 0.0
+
+
+def test_speed_beside_reads_the_known_frames_on_each_side_only():
+    """A root walking 2 cm per frame before the gap and 4 after it, with anything inside the gap: 3 cm per frame;
+    the gate reads the distance over 1 + speed / scale (unchanged with scale 0)."""
+    a, b = 20, 40
+    steps = np.where(np.arange(60) < a, 2.0, 4.0)
+    track = np.stack([np.cumsum(steps), np.zeros(60)], 1)
+    track[a:b] = np.random.default_rng(0).normal(0, 50, (b - a, 2))           # broken capture in the gap
+    assert speed_beside(track, a, b) == pytest.approx(3.0)
+    assert speed_beside(track[:, ::-1] * 0.0, a, b) == 0.0                         # standing still
+    assert gate_distance(0.06, 3.0, 1.0) == pytest.approx(0.015)
+    assert gate_distance(0.06, 3.0, 0.0) == 0.06
+
+
+def test_shipped_gate_lets_a_walk_match_lie_farther_than_a_standing_one(shipped):
+    """The shipped gate reads the distance relative to the speed beside the gap: the same match distance opens
+    the gate beside a walk (3 cm per frame) and keeps it shut beside a body standing still."""
+    mc = shipped.cfg.model
+    assert mc.match_speed_scale > 0
+    d = 0.5 * (mc.match_lo + mc.match_hi) * (1 + 3.0 / mc.match_speed_scale)     # halfway up the ramp at 3 cm
+    assert match_weight(gate_distance(d, 3.0, mc.match_speed_scale), mc.match_lo, mc.match_hi) == pytest.approx(0.5)
+    assert match_weight(gate_distance(d, 0.0, mc.match_speed_scale), mc.match_lo, mc.match_hi) == 0.0
 
 
 def test_a_gap_cut_from_a_bank_clip_gets_that_clip_back(shipped, motions):

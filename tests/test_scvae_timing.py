@@ -1,11 +1,11 @@
-"""The S-CVAE sampled mode's timing variants (:func:`inbetween_jax.models.scvae.bank.retimed`): pure maths on a
+"""The S-CVAE sampled mode's timing variants (:func:`inbetween_jax.models.scvae.timing.retimed`): pure maths on a
 path whose timing is known in closed form (a straight root line and a constant-rate rotation)."""
 from __future__ import annotations
 
 import numpy as np
 
 from inbetween_jax.geometry.quaternion import quat_from_axis_angle
-from inbetween_jax.models.scvae.bank import retimed, timing_amplitudes
+from inbetween_jax.models.scvae.timing import retimed, timing_amplitudes
 
 L, S = 19, 10
 
@@ -51,18 +51,20 @@ def test_zero_spread_changes_nothing():
     np.testing.assert_allclose(out_r, r)
 
 
-def test_shipped_samples_are_retimed_between_two_keyframes_only():
-    """Through ``infill_between`` with the shipped S-CVAE on a real clip: two keyframes alone get timing variants
-    (samples 1-9 move, sample 0 stays); with the frames beside the keyframes known the timing is left alone."""
+def test_shipped_samples_are_retimed_more_between_two_keyframes_than_inside_a_clip():
+    """Through ``infill_between`` with the shipped S-CVAE on a real clip: samples 1-9 get timing variants (sample 0
+    stays), at ``timing_spread`` between two keyframes alone and at the smaller ``timing_spread_in_clip`` where the
+    frames beside the keyframes are known (they pin the timing); with both spreads 0 nothing is retimed."""
     import dataclasses
     from inbetween_jax.data import load_motions
     from inbetween_jax.models.scvae import infer
     from inbetween_jax.models.scvae.context import AFTER, BEFORE
     from inbetween_jax.shipped import shipped_run
     trained = infer.load(shipped_run("scvae"))
-    assert trained.cfg.model.timing_spread > 0, "the shipped S-CVAE retimes its samples"
+    mc = trained.cfg.model
+    assert mc.timing_spread > mc.timing_spread_in_clip > 0, "the shipped S-CVAE retimes its samples, less in a clip"
     off = dataclasses.replace(trained, cfg=dataclasses.replace(trained.cfg, model=dataclasses.replace(
-        trained.cfg.model, timing_spread=0.0)))
+        mc, timing_spread=0.0, timing_spread_in_clip=0.0)))
     m = load_motions("embedded", "test")[0]
     k0, n = 5, 20
     k1 = k0 + n + 1
@@ -77,9 +79,74 @@ def test_shipped_samples_are_retimed_between_two_keyframes_only():
             e.update(zip(AFTER, (m.local_quats[k1 + 1], m.root_pos[k1 + 1], m.local_quats[k1 + 2],
                                  m.root_pos[k1 + 2])))
         return s, e
-    for sides in (False, True):
+    for sides, spread in ((False, mc.timing_spread), (True, mc.timing_spread_in_clip)):
         on, plain = (infer.infill_between(t, m.skeleton, *keys(sides), n, S, 0, fa) for t in (trained, off))
+        assert on["context"] == ("none" if not sides else "both sides")
         np.testing.assert_allclose(on["r"][0], plain["r"][0], atol=1e-6)
-        moved = np.abs(on["r"][1:] - plain["r"][1:]).max()
-        assert (moved > 1e-3) if not sides else (moved < 1e-6)
-        assert (np.abs(on["timing_shift"][1:]).min() > 0) if not sides else not on["timing_shift"].any()
+        assert np.abs(on["q"][1:] - plain["q"][1:]).max() > 1e-3                     # samples 1-9 retimed
+        np.testing.assert_allclose(np.abs(on["timing_by_part"]).max(), spread)
+        assert np.abs(on["timing_shift"][1:]).min() > 0 and not on["timing_shift"][0]
+        assert not plain["timing_by_part"].any()
+
+
+# ---- part-wise timing (model.timing_parts) ----
+
+def test_part_amplitudes_split_the_samples_between_whole_and_part_wise_timing():
+    from inbetween_jax.models.scvae.timing import PARTS, part_amplitudes
+    a = part_amplitudes(S, 0.3)
+    assert a.shape == (S, len(PARTS)) and not a[0].any()                        # sample 0 is the fill
+    whole, parts = a[1:5], a[5:]
+    np.testing.assert_allclose(whole, np.repeat(timing_amplitudes(5, 0.3)[1:, None], len(PARTS), 1))
+    assert not parts[:, 0].any()                                                # part-wise: the torso keeps time
+    assert all(row.max() > 0 > row.min() for row in parts)                      # one part earlier, another later
+    np.testing.assert_allclose(np.abs(parts).max(), 0.3)
+    assert len({tuple(np.round(r, 9)) for r in a}) == S                         # no two samples alike
+    np.testing.assert_allclose(part_amplitudes(S, 0.3, parts=False),
+                               np.repeat(timing_amplitudes(S, 0.3)[:, None], len(PARTS), 1))
+
+
+def test_each_part_is_replayed_on_its_own_clock():
+    """Five joints, one per part, each turning at a constant rate; the root moving along x: every joint's angle
+    follows its own part's warped clock, the root the torso's."""
+    from inbetween_jax.models.scvae.timing import part_amplitudes, retimed
+    t = np.arange(L + 2) / (L + 1)
+    q = np.stack([quat_from_axis_angle(np.array([0.0, 1.0, 0.0]), (0.5 + 0.25 * j) * t) for j in range(5)], 1)
+    r = np.stack([100 * t, np.zeros_like(t), np.zeros_like(t)], 1)
+    qs = np.broadcast_to(q[None, None, 1:-1], (S, 1, L, 5, 4))
+    rs = np.broadcast_to(r[None, None, 1:-1], (S, 1, L, 3))
+    out_q, out_r = retimed(q[None, 0], r[None, 0], q[None, -1], r[None, -1], qs, rs, 0.5, parts=np.arange(5))
+    np.testing.assert_allclose(out_q[0], qs[0])
+    tt = t[1:-1]
+    for s, amps in enumerate(part_amplitudes(S, 0.5)):
+        for j in range(5):
+            u = tt + amps[j] * np.sin(np.pi * tt) / np.pi
+            angle = 2 * np.arctan2(np.linalg.norm(out_q[s, 0, :, j, 1:], axis=-1), np.abs(out_q[s, 0, :, j, 0]))
+            np.testing.assert_allclose(angle, (0.5 + 0.25 * j) * u, atol=1e-5)
+        np.testing.assert_allclose(out_r[s, 0, :, 0], 100 * (tt + amps[0] * np.sin(np.pi * tt) / np.pi), atol=1e-9)
+
+
+def test_body_parts_on_three_rigs():
+    """The 21-joint CMU rig of the shipped weights, the raw 43-joint CMU rig (fingers, eyes) and LaFAN1's: feet in
+    their own side's leg, each arm's mirror twin in the other arm, the root and head in the torso."""
+    import os
+    from conftest import CLIP_A, LAFAN1_DIR, SHARED_DATA
+    from inbetween_jax.data.bvh import read_bvh
+    from inbetween_jax.models.scvae.timing import PARTS, body_parts
+    files = [CLIP_A, os.path.join(SHARED_DATA, "cmu_bvh", "02_01.bvh"),
+             os.path.join(LAFAN1_DIR, "dance1_subject1.bvh")]
+    files = [f for f in files if os.path.exists(f)]
+    assert CLIP_A in files
+    for f in files:
+        sk = read_bvh(f, 0, 2).skeleton
+        parts = body_parts(sk)
+        names = [n.lower() for n in sk.names]
+        la, _, ra, _ = sk.foot_joints()
+        assert PARTS[parts[la]] == "left leg" and PARTS[parts[ra]] == "right leg", f
+        assert parts[0] == 0 and parts[names.index("head")] == 0, f
+        twin = sk.mirror_map()
+        arms = [j for j in range(len(parts)) if PARTS[parts[j]].endswith("arm")]
+        assert len(arms) >= 8, f                                                # collar / shoulder .. hand, both
+        for j in arms:
+            assert {PARTS[parts[j]], PARTS[parts[twin[j]]]} == {"left arm", "right arm"}, (f, sk.names[j])
+        hand = next(j for j, n in enumerate(names) if n in ("lhand", "lefthand"))
+        assert PARTS[parts[hand]] == "left arm", f

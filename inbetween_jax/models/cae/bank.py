@@ -14,7 +14,8 @@ radians) with every training window of the same length.  The ``k`` nearest (mean
 number, displacement included with weight ``match_disp``) are each offset-blended onto the known frames (the
 difference at ``a - 1`` fading out linearly over the gap and the difference at ``b`` fading in; Kovar et al.'s
 transition blending) and averaged.  A gate on that distance, ``w = clip((hi - d) / (hi - lo), 0, 1)``
-(``match_lo`` / ``match_hi``), blends the match over the gap's fill: ``fill + w (match - fill)``.  A match whose
+(``match_lo`` / ``match_hi``; with ``match_speed_scale`` > 0 on the distance over ``1 + root speed beside the gap /
+scale``, :func:`gate_distance`), blends the match over the gap's fill: ``fill + w (match - fill)``.  A match whose
 body departs from the fill by more than ``match_departure`` times the body's own travel beside the gap
 (:func:`departure`) is not used at all: the distance alone let matches that walk through a gap where the body
 stands still (a jump in place) through when the thresholds were chosen without that subject.  Both are chosen on
@@ -30,11 +31,12 @@ import numpy as np
 
 from inbetween_jax.errors import UserError
 
-__all__ = ["BANK_FILE", "SWITCHES", "MatchBank", "match_enabled", "match_gap", "departure", "match_weight"]
+__all__ = ["BANK_FILE", "SWITCHES", "MatchBank", "match_enabled", "match_gap", "departure", "match_weight",
+           "speed_beside", "gate_distance"]
 
 BANK_FILE = "bank.npz"
 SWITCHES = ("model.match_k", "model.match_lo", "model.match_hi", "model.match_disp",
-            "model.match_departure")                                                   # inference only
+            "model.match_departure", "model.match_speed_scale")                        # inference only
 MARGIN = 8                     # known frames a gap's context needs on each side (gate.CONTEXT_FRAMES)
 STRIDE = 2                     # frames between the bank's candidate windows
 CACHED_LENGTHS = 8             # gap lengths whose candidate contexts are kept
@@ -182,6 +184,22 @@ def departure(fill, matched, known_pos, a: int, b: int, normalizer, num_joints: 
     travel = 0.5 * (np.linalg.norm(p[a - 1] - p[a - MARGIN], axis=-1).mean()
                     + np.linalg.norm(p[b + MARGIN - 1] - p[b], axis=-1).mean())
     return float(dev / max(travel, 1.0))
+
+
+def speed_beside(ref, a: int, b: int) -> float:
+    """The root's mean floor speed (cm per frame) over the :data:`MARGIN` known frames on each side of gap
+    ``[a, b)``: ``ref`` (T, 2) the root track in cm (known frames only are read)."""
+    r = np.asarray(ref, np.float64)
+    before = np.linalg.norm(np.diff(r[max(a - MARGIN, 0):a], axis=0), axis=1)
+    after = np.linalg.norm(np.diff(r[b:b + MARGIN], axis=0), axis=1)
+    return float(np.mean([s.mean() for s in (before, after) if len(s)] or [0.0]))
+
+
+def gate_distance(distance: float, speed: float, scale: float) -> float:
+    """The distance the match gate reads (``model.match_speed_scale``): ``distance / (1 + speed / scale)``, so a
+    match may lie farther from the query where the body travels beside the gap (a walk's matches help, an
+    everyday or dance gap's seldom do: docs/results/gate.md); ``scale`` <= 0 leaves the distance as it is."""
+    return float(distance) / (1.0 + float(speed) / scale) if scale > 0 else float(distance)
 
 
 def match_weight(distance: float, lo: float, hi: float) -> float:

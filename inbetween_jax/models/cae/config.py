@@ -98,6 +98,8 @@ class ModelConfig:
     match_disp: float = 0.25                    # weight of the root's displacement and turn across the gap
     match_departure: float = 0.5                # a match departing further from the fill than this share of the
                                                 # body's travel beside the gap is not used (bank.departure)
+    match_speed_scale: float = 0.0              # > 0: the gate reads the distance / (1 + root speed beside the gap
+                                                # / this, cm per frame) (bank.gate_distance); 0: the distance
 
 
 @dataclasses.dataclass(frozen=True)

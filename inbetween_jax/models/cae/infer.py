@@ -24,8 +24,8 @@ from inbetween_jax.geometry import forward_kinematics, quat_slerp
 from inbetween_jax.errors import UserError
 from inbetween_jax.geometry.fit import fit_rotations
 from inbetween_jax.models.cae import model as cae_model
-from inbetween_jax.models.cae.bank import (BANK_FILE, MARGIN, MatchBank, departure, match_enabled, match_gap,
-                                           match_weight)
+from inbetween_jax.models.cae.bank import (BANK_FILE, MARGIN, MatchBank, departure, gate_distance, match_enabled,
+                                           match_gap, match_weight, speed_beside)
 from inbetween_jax.models.cae.config import Config
 from inbetween_jax.models.cae.features import (body_frame_features, body_positions, mirror_clips, mirror_rows,
                                                num_features, to_global)
@@ -191,8 +191,9 @@ def process_motion(model, motion, gaps=(), noise: float = 0.0, dropout: float = 
 
 def _matched(model, y, x_masked, feats, frame_mask, gated) -> list:
     """Blend each whole gap of ``y`` (D, T), in place, toward its matched training window (:mod:`.bank`), by the
-    match gate's weight.  Returns the per-gap records (``gated``'s, or new ones) with ``match_distance`` and
-    ``match_weight`` added."""
+    match gate's weight.  Returns the per-gap records (``gated``'s, or new ones) with ``match_distance`` (the
+    distance the gate reads, :func:`~.bank.gate_distance`), ``speed_beside`` (cm per frame) and ``match_weight``
+    added."""
     from inbetween_jax.models.cae.masks import gap_ranges
     mc = model.cfg.model
     ref, yaw = feats.ref, feats.yaw                                   # read at known frames only
@@ -202,10 +203,13 @@ def _matched(model, y, x_masked, feats, frame_mask, gated) -> list:
         fill_, dist = match_gap(model.match, x_masked, ref, yaw, a, b, mc.match_k, mc.match_disp)
         dep = None if fill_ is None else departure(y[:, a:b], fill_, feats.global_pos, a, b, model.normalizer,
                                                     model.num_joints)
-        w = match_weight(dist, mc.match_lo, mc.match_hi) if dep is not None and dep <= mc.match_departure else 0.0
+        speed = speed_beside(ref, a, b)
+        gd = gate_distance(dist, speed, mc.match_speed_scale)
+        w = match_weight(gd, mc.match_lo, mc.match_hi) if dep is not None and dep <= mc.match_departure else 0.0
         if w > 0:
             y[:, a:b] += w * (fill_ - y[:, a:b])
-        row.update(match_distance=dist if np.isfinite(dist) else None, match_departure=dep, match_weight=w)
+        row.update(match_distance=gd if np.isfinite(gd) else None, match_departure=dep, match_weight=w,
+                   speed_beside=round(speed, 4))
     return rows
 
 
@@ -253,13 +257,13 @@ def infill(args, run: Run) -> InfillResult:
                "refit_frames": int(np.sum(res["frames"]))}
     if res["gaps_ood"]:             # the gate and the match, per gap (in the order of "gaps")
         from inbetween_jax.models.ood import gate_note
-        keys = ("ood_score", "gate_weight", "match_distance", "match_departure", "match_weight")
+        keys = ("ood_score", "gate_weight", "match_distance", "speed_beside", "match_departure", "match_weight")
         summary["gaps_ood"] = [dict({"gap_index": i}, **{k: g[k] for k in keys if k in g})
                                for i, g in enumerate(res["gaps_ood"])]
         for i, g in enumerate(res["gaps_ood"]):
             if g.get("match_weight", 0.0) >= 0.5:
                 notes.append(f"gap {i + 1}: follows the nearest training motion (match distance "
-                             f"{g['match_distance']:.3f}, departure {g['match_departure']:.2f}, weight "
+                             f"{g['match_distance']:.4f}, departure {g['match_departure']:.2f}, weight "
                              f"{g['match_weight']:.2f})")
             elif g.get("gate_weight", 1.0) < 0.5:
                 notes.append(f"gap {i + 1}: " + gate_note(g["ood_score"], g["gate_weight"], "the Hermite fill"))

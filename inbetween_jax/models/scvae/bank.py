@@ -29,15 +29,16 @@ from inbetween_jax.geometry.kinematics import forward_kinematics, local_position
 from inbetween_jax.geometry.mirror import MIRROR_TAG, rest_side_axis
 from inbetween_jax.geometry.quaternion import quat_from_axis_angle, quat_inv, quat_mul, quat_normalize, quat_rotate
 from inbetween_jax.geometry.quaternion import quat_align, quat_fix_sign_np, quat_slerp
+from inbetween_jax.models.scvae.timing import retimed
 
 __all__ = ["BANK_FILE", "SWITCHES", "MIRROR_TAG", "TransitionBank", "keyframe_space", "knn_transition",
-           "knn_base_path", "pad_base_path", "blend", "sample_blend", "bank_sample_blend", "retimed",
-           "timing_amplitudes", "sampled_mode", "sample_weight", "bank_enabled", "bank_searched", "bank_needed",
+           "knn_base_path", "pad_base_path", "blend", "sample_blend", "bank_sample_blend",
+           "sampled_mode", "sample_weight", "bank_enabled", "bank_searched", "bank_needed",
            "check_mirror"]
 
 BANK_FILE = "bank.npz"
-SWITCHES = ("model.bank_k", "model.bank_weight", "model.bank_tau", "model.bank_sample_weight",
-            "model.timing_spread")                                                      # inference only
+SWITCHES = ("model.bank_k", "model.bank_weight", "model.bank_tau", "model.bank_sample_weight",          # inference only
+            "model.timing_spread", "model.timing_parts", "model.timing_spread_in_clip")
 CACHED_LENGTHS = 8        # transition lengths whose match features a bank keeps (about 30 MB each for CMU)
 QUERY_CHUNK = 64          # queries warped at once (memory: chunk x k x frames x joints x 4)
 MAX_TURN = np.pi          # bank transitions whose root turns further than this (radians) are not candidates
@@ -344,47 +345,15 @@ def sample_blend(q, r, each_q, each_r, weight: float):
     return q, r
 
 
-def bank_sample_blend(bank: TransitionBank, key_q, key_r, tgt_q, tgt_r, q, r, weight: float, timing: float = 0.0):
+def bank_sample_blend(bank: TransitionBank, key_q, key_r, tgt_q, tgt_r, q, r, weight: float, timing: float = 0.0,
+                      parts=None):
     """:func:`sample_blend` of samples q (S, B, L, J, 4), r (S, B, L, 3) of the in-betweens between keyframes
     ``key`` and ``tgt`` (key_q, tgt_q (B, J, 4); key_r, tgt_r (B, 3), the samples' space) with the bank's S - 1
     nearest transitions (:func:`knn_transition` with ``each``); then, with ``timing`` > 0, each sample s >= 1
-    retimed (:func:`retimed`)."""
+    retimed (:func:`~.timing.retimed`; ``parts``: (J,) body part labels for part-wise timing, or None)."""
     each_q, each_r, _ = knn_transition(bank, key_q, key_r, tgt_q, tgt_r, q.shape[2], q.shape[0] - 1, each=True)
     q, r = sample_blend(q, r, each_q, each_r, weight)
-    return retimed(key_q, key_r, tgt_q, tgt_r, q, r, timing) if timing > 0 else (q, r)
-
-
-def timing_amplitudes(num_samples: int, spread: float) -> np.ndarray:
-    """(S,) warp amplitudes of :func:`retimed`: 0 for sample 0, then +-spread/m, +-2 spread/m, ..., alternating
-    (m = ceil((S - 1) / 2)), so the samples cover early and late timings evenly; ``spread`` is capped at 0.95 (the
-    warp stays monotone below 1)."""
-    spread = min(float(spread), 0.95)
-    s = np.arange(num_samples)
-    m = max(int(np.ceil((num_samples - 1) / 2)), 1)
-    return np.where(s == 0, 0.0, np.where(s % 2 == 1, 1.0, -1.0) * np.ceil(s / 2) * spread / m)
-
-
-def retimed(key_q, key_r, tgt_q, tgt_r, q, r, spread: float):
-    """The timing variants of the sampled mode (``model.timing_spread``): sample s of q (S, B, L, J, 4), r (S, B,
-    L, 3) -- the frames strictly between keyframes key (B, J, 4) / (B, 3) and tgt -- replayed along the warped
-    time ``u(t) = t + a_s sin(pi t) / pi`` of :func:`timing_amplitudes` (t in [0, 1] from key to tgt; monotone
-    for |a| < 1; a > 0 moves the motion earlier), slerping / lerping between the frames it falls between.  The
-    keyframes do not say when the motion between them happens; these samples offer the same motion earlier and
-    later.  Sample 0 is unchanged.  Returns float64 arrays of q's and r's shapes."""
-    q, r = np.array(q, np.float64), np.array(r, np.float64)
-    n_s, _, length = q.shape[:3]
-    amps = timing_amplitudes(n_s, spread)
-    t = np.arange(1, length + 1) / (length + 1)
-    for s in range(1, n_s):
-        fq = np.concatenate([np.asarray(key_q, np.float64)[:, None], q[s], np.asarray(tgt_q, np.float64)[:, None]], 1)
-        fr = np.concatenate([np.asarray(key_r, np.float64)[:, None], r[s], np.asarray(tgt_r, np.float64)[:, None]], 1)
-        tau = (t + amps[s] * np.sin(np.pi * t) / np.pi) * (length + 1)
-        lo = np.clip(np.floor(tau).astype(int), 0, length)
-        frac = tau - lo
-        q0, q1 = fq[:, lo], fq[:, lo + 1]
-        q[s] = quat_slerp(q0, quat_align(q1, q0), frac[None, :, None])
-        r[s] = fr[:, lo] + frac[None, :, None] * (fr[:, lo + 1] - fr[:, lo])
-    return q, r
+    return retimed(key_q, key_r, tgt_q, tgt_r, q, r, timing, parts) if timing > 0 else (q, r)
 
 
 def sampled_mode(model_cfg, num_samples: int) -> bool:

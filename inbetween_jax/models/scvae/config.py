@@ -131,7 +131,9 @@ class ModelConfig:
     bank_sample_weight: float = 0.0  # inference, more than one sample: sample s >= 1 blends in the bank's s-th nearest
     bank_sample_gated: bool = False  # ... by that weight times the gate's (with ood_gate): none where the gate closes
     timing_spread: float = 0.0       # sampled mode, two keyframes alone: samples s >= 1 also replayed earlier / later
-                                     # (bank.retimed), warp amplitudes up to this (< 1); 0: off
+                                     # (timing.retimed), warp amplitudes up to this (< 1); 0: off
+    timing_parts: bool = False       # ... half of them with arms, legs and sides on their own clocks (timing.py)
+    timing_spread_in_clip: float = 0.0  # ... the spread inside a clip (frames beside the keyframes known); 0: off
     ood_gate: bool = False         # inference: blend toward Slerp / lerp as the keyframes leave the training motion
     context_base: bool = False     # inference: frames beside the keyframes known -> onto the Hermite path (.context)
     context_damping: float = 0.1   # ... its velocity terms faded by exp(-context_damping * t) (per frame)

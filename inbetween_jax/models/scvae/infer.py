@@ -22,10 +22,11 @@ import numpy as np
 from inbetween_jax.models.scvae import model as M
 from inbetween_jax.models.scvae.bank import (BANK_FILE, TransitionBank, bank_enabled, bank_needed, bank_sample_blend,
                                              bank_searched, blend, knn_base_path, knn_transition, pad_base_path,
-                                             sample_weight, sampled_mode, timing_amplitudes)
+                                             sample_weight, sampled_mode)
 from inbetween_jax.models.scvae.context import context_kind, context_offsets, known_sides, neighbours, onto_context
 from inbetween_jax.models.scvae.features import keyframe_contacts, past_frame_inputs
 from inbetween_jax.models.scvae.losses import fk_positions
+from inbetween_jax.models.scvae.timing import PARTS, body_parts, part_amplitudes
 
 __all__ = ["MIN_FRAMES", "Trained", "load", "load_bank", "infill", "frame_range", "infill_between",
            "sample_transitions", "bank_transitions", "bank_samples"]
@@ -194,7 +195,8 @@ def bank_samples(bank: TransitionBank, cfg, windows, n_past: int, n_trans: int, 
     the gate's per window)."""
     k0, k1 = n_past - 1, n_past + n_trans
     return bank_sample_blend(bank, windows.local_quats[:, k0], windows.root_pos[:, k0], windows.local_quats[:, k1],
-                             windows.root_pos[:, k1], q, r, sample_weight(cfg, gate_weight), cfg.timing_spread)
+                             windows.root_pos[:, k1], q, r, sample_weight(cfg, gate_weight), cfg.timing_spread,
+                             body_parts(windows.skeleton) if cfg.timing_parts else None)
 
 
 def bank_transitions(bank: TransitionBank, cfg, windows, n_past: int, n_trans: int):
@@ -225,8 +227,9 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
     forward_axis: the root's local facing axis (default: inferred from ``skeleton``).
     Returns ``q`` (S, frames + 2, J, 4) and ``r`` (S, frames + 2, 3) float64 in the keyframes' world space;
     frame 0 is ``start`` and frame ``frames + 1`` is ``end``, both exactly as given; ``context``: which
-    neighbouring frames the fill continues (:func:`~.context.context_kind`); ``timing_shift`` (S,): each sample's
-    retiming amplitude (:func:`~.bank.retimed`; zeros when not retimed); and with the gate ``ood_score`` and
+    neighbouring frames the fill continues (:func:`~.context.context_kind`); ``timing_by_part`` (S, len(PARTS)):
+    each sample's retiming amplitude per body part (:func:`~.timing.retimed`; zeros when not retimed) and
+    ``timing_shift`` (S,) the largest of them in size, signed; and with the gate ``ood_score`` and
     ``gate_weight``.
 
     Raises:
@@ -289,17 +292,20 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
         mid_q, mid_r = onto_context(q[:, None, 1:-1], r[:, None, 1:-1],
                                     *slerp_base(qs[None], roots[:1], qe[None], roots[1:], frames), dq, dr)
         q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
-    timing = np.zeros(num_samples)
+    timing = np.zeros((num_samples, len(PARTS)))
     if trained.bank is not None and sampled_mode(m, num_samples):   # sample s >= 1: the bank's s-th nearest
-        spread = m.timing_spread if ctx == "none" else 0.0           # inside a clip the sides pin the timing
+        spread = m.timing_spread if ctx == "none" else m.timing_spread_in_clip   # the sides pin the timing more
         mid_q, mid_r = bank_sample_blend(trained.bank, qs[None], roots[:1], qe[None], roots[1:], q[:, None, 1:-1],
-                                         r[:, None, 1:-1], sample_weight(m, gated.get("gate_weight")), spread)
+                                         r[:, None, 1:-1], sample_weight(m, gated.get("gate_weight")), spread,
+                                         body_parts(skeleton) if m.timing_parts else None)
         q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
         if spread > 0:                                               # as bank_sample_blend retimes
-            timing = timing_amplitudes(num_samples, spread)
+            timing = part_amplitudes(num_samples, spread, m.timing_parts)
     q[:, 0], r[:, 0], q[:, -1], r[:, -1] = qs, roots[0], qe, roots[1]                 # exact keyframes
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    return {"q": quat_fix_sign_np(q, axis=1), "r": r, **gated, "context": ctx, "timing_shift": timing}
+    biggest = np.take_along_axis(timing, np.abs(timing).argmax(1)[:, None], 1)[:, 0]
+    return {"q": quat_fix_sign_np(q, axis=1), "r": r, **gated, "context": ctx, "timing_shift": biggest,
+            "timing_by_part": timing}
 
 
 def _is_lafan1_skeleton(skel) -> bool:
@@ -401,8 +407,11 @@ def infill(args, run):
                                                   "past_frame": past, "context": context, **gated,
                                                   **spread,
                                                   "samples_ood": [dict(gated, sample=n, toward_captured=b,
-                                                                       timing_shift=round(float(a), 4))
-                                                                  for n, b, a in zip(sample_names(args.samples),
-                                                                                     blends, res["timing_shift"])]
+                                                                       timing_shift=round(float(a), 4),
+                                                                       timing_by_part={p: round(float(x), 4) for p, x
+                                                                                       in zip(PARTS, by_part)})
+                                                                  for n, b, a, by_part in zip(
+                                                                      sample_names(args.samples), blends,
+                                                                      res["timing_shift"], res["timing_by_part"])]
                                                   if gated else []},
                         notes=notes)
