@@ -3,6 +3,7 @@ path whose timing is known in closed form (a straight root line and a constant-r
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from inbetween_jax.geometry.quaternion import quat_from_axis_angle
 from inbetween_jax.models.scvae.timing import retimed, timing_amplitudes
@@ -150,3 +151,27 @@ def test_body_parts_on_three_rigs():
             assert {PARTS[parts[j]], PARTS[parts[twin[j]]]} == {"left arm", "right arm"}, (f, sk.names[j])
         hand = next(j for j, n in enumerate(names) if n in ("lhand", "lefthand"))
         assert PARTS[parts[hand]] == "left arm", f
+
+
+@pytest.mark.slow
+def test_bench_writes_the_sampled_mode_rows_two_keyframes_and_inside_a_clip(tmp_path):
+    """The S-CVAE bench section on the shipped weights (embedded test windows): bench.json's samples table holds
+    the sampled mode between two keyframes and inside a clip, beside the fills they start from; the samples are
+    apart where the fills' ten samples are not, and sample 0 keeps their accuracy within the 3 % rule's reach."""
+    from inbetween_jax.models.scvae.bench import run
+    from inbetween_jax.shipped import shipped_run
+    out = run("embedded", str(tmp_path), shipped_run("scvae").run_dir, quick=True)
+    rows = [r for r in out["rows"] if r.get("table") == "samples"]
+    preset = shipped_run("scvae").preset
+
+    def get(variant, frames, metric):
+        hit = [r["value"] for r in rows if r.get("variant") == variant and r.get("frames") == frames
+               and r.get("metric") == metric]
+        assert len(hit) == 1, (variant, frames, metric)
+        return hit[0]
+    for n in (10, 30, 50):
+        for fill, sampled in ((preset, f"{preset}, sampled mode"),
+                              (f"{preset}, inside a clip", f"{preset}, sampled mode, inside a clip")):
+            assert get(sampled, n, "pairwise_cm") > 5 * get(fill, n, "pairwise_cm")
+            assert get(sampled, n, "best_cm") < get(fill, n, "best_cm")
+            assert get(sampled, n, "mean_cm") < 1.1 * get(fill, n, "mean_cm")

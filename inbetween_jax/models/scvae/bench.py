@@ -105,6 +105,11 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
                       **transition_metrics(bench, N_PAST, length, q_, r_, x_mean, x_std)}
                      for name, q_, r_ in ((HERMITE_NAME, hq, hr), (IN_CLIP_NAME, cq, cr))]
             clip_window += window_ratios(bench, N_PAST, length, cq, cr)
+            if trained.bank is not None and sampled_mode(model_cfg, NUM_SAMPLES):   # as infill, inside a clip
+                sq_, sr_ = infer.bank_samples(trained.bank, model_cfg, bench, N_PAST, length, cq, cr, weight,
+                                              spread=model_cfg.timing_spread_in_clip)
+                sample_table += length_rows(bench, N_PAST, length, x_mean, x_std,
+                                            [(IN_CLIP_NAME, cq, cr), (SAMPLED_IN_CLIP, sq_, sr_)])[1:]
         if length == max(lengths):
             longest = s
         row = {"method": "S-CVAE", "frames": length,
@@ -167,7 +172,10 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
                 + flat_rows([r for r in rows if r["method"] == IN_CLIP_NAME], "table1", data, model="scvae",
                             variant=f"{run_.preset}, inside a clip"))
     for method, model, var in (("Slerp", "slerp", ""), (variant, "scvae", run_.preset),
-                               (UNGATED, "scvae", f"{run_.preset}, network alone (no gate)")):
+                               (UNGATED, "scvae", f"{run_.preset}, network alone (no gate)"),
+                               (SAMPLED, "scvae", f"{run_.preset}, sampled mode"),
+                               (IN_CLIP_NAME, "scvae", f"{run_.preset}, inside a clip"),
+                               (SAMPLED_IN_CLIP, "scvae", f"{run_.preset}, sampled mode, inside a clip")):
         records += flat_rows([r for r in sample_table if r["method"] == method], "samples", data, model=model,
                              variant=var)
     return {"markdown": md, "rows": records, "table": rows, "step": trained.step, "source": source,
@@ -178,6 +186,7 @@ OFFICIAL_LENGTHS = (5, 15, 30, 45)
 VELOCITY_BASELINE = "Slerp + start velocity (Hermite)"
 NETWORK_ALONE = "S-CVAE, network alone (no bank)"
 SAMPLED = "S-CVAE, sampled mode"
+SAMPLED_IN_CLIP = "S-CVAE inside a clip, sampled mode"
 UNGATED = "S-CVAE, network alone (no out-of-distribution gate)"
 
 

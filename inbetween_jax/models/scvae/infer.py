@@ -188,14 +188,17 @@ def sample_transitions(cfg, state, windows, n_past: int, n_trans: int, num_sampl
     return out
 
 
-def bank_samples(bank: TransitionBank, cfg, windows, n_past: int, n_trans: int, q, r, gate_weight=None):
+def bank_samples(bank: TransitionBank, cfg, windows, n_past: int, n_trans: int, q, r, gate_weight=None,
+                 spread=None):
     """The sampled mode (:func:`.bank.sample_blend`, ``cfg.bank_sample_weight``) on samples q (S, B, n_trans, J,
     4), r (S, B, n_trans, 3) of the transitions between frames ``n_past - 1`` and ``n_past + n_trans``: sample
     s >= 1 blended with the bank's s-th nearest transition (weight :func:`sample_weight`, ``gate_weight`` (B,)
-    the gate's per window)."""
+    the gate's per window), then retimed at ``spread`` (default ``cfg.timing_spread``, the two-keyframe one;
+    inside a clip ``cfg.timing_spread_in_clip``)."""
     k0, k1 = n_past - 1, n_past + n_trans
     return bank_sample_blend(bank, windows.local_quats[:, k0], windows.root_pos[:, k0], windows.local_quats[:, k1],
-                             windows.root_pos[:, k1], q, r, sample_weight(cfg, gate_weight), cfg.timing_spread,
+                             windows.root_pos[:, k1], q, r, sample_weight(cfg, gate_weight),
+                             cfg.timing_spread if spread is None else spread,
                              body_parts(windows.skeleton) if cfg.timing_parts else None)
 
 
