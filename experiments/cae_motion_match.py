@@ -48,7 +48,6 @@ p.add_argument("--fit-subjects", action="store_true",
                help="also the fit subjects' gaps, each matched against the bank without its own subject's files "
                     "(everyday, dance, martial arts, ... which the validation subjects lack); the gate is chosen "
                     "on all")
-p.add_argument("--dump", default=None, help="write every gap's record (JSON) here, for gates tried offline")
 p.add_argument("--speed-scales", default=None,
                help="also try gates on the distance over (1 + root speed beside the gap / c), for these c "
                     "(cm per frame): a match may lie farther where the body travels")
@@ -117,10 +116,6 @@ for m, exclude in motions:
                     "steps": (steps if used else [steps[0]] * len(steps),
                               float(lift_offs(base_pos[span], (feet[0], feet[2]))),
                               float(lift_offs(gp[span], (feet[0], feet[2]))))})
-if a.dump:
-    import json
-    with open(a.dump, "w") as f:
-        json.dump({f"{k},{d}": rs for (k, d), rs in records.items()}, f)
 gates = {}
 for (k, disp), rs in records.items():
     gate, summ = gates[(k, disp)] = calibrate_gate([r["score"] for r in rs], [r["ratios_at"] for r in rs],

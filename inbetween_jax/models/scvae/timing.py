@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from inbetween_jax.geometry.kinematics import forward_kinematics, local_positions
 from inbetween_jax.geometry.quaternion import quat_align, quat_slerp
 
 __all__ = ["PARTS", "timing_amplitudes", "part_amplitudes", "body_parts", "retimed"]
@@ -70,9 +71,9 @@ def body_parts(skeleton) -> np.ndarray:
     head = lower.index("head") if "head" in lower else lower.index("neck") if "neck" in lower else None
     if head is None:
         return parts
-    rest = np.zeros((j, 3))
-    for i in range(1, j):
-        rest[i] = rest[parents[i]] + np.asarray(skeleton.offsets[i], np.float64)
+    offsets = np.asarray(skeleton.offsets, np.float64)
+    rest = forward_kinematics(np.tile([1.0, 0.0, 0.0, 0.0], (j, 1)), local_positions(np.zeros(3), offsets),
+                              skeleton.parents)[1]                                       # the rest pose
     left = rest[la] - rest[ra]
     spine = set()
     i = head
@@ -85,12 +86,12 @@ def body_parts(skeleton) -> np.ndarray:
         while todo:
             k = todo.pop()
             out.append(k)
-            todo += [c for c in range(j) if parents[c] == k]
+            todo += skeleton.children(k)
         return out
     for s in sorted(spine):
         if lower[s] in ("head", "neck"):                       # eyes, jaw: the head's
             continue
-        for c in (c for c in range(j) if parents[c] == s and c not in spine):
+        for c in (c for c in skeleton.children(s) if c not in spine):
             members = subtree(c)
             side_left = float(np.mean(rest[members], 0) @ left - rest[s] @ left) > 0
             if la in members or ra in members:
