@@ -78,6 +78,10 @@ def test_calibration_scores_the_validation_take_at_each_blend_weight():
     s = res["summary"]
     assert isinstance(res["bank"], SpeedScore) and s["windows"] == 8
     assert (not s["meets_limits"]) or (s["p90"] <= 1.05 + 1e-9 and s["max"] <= 1.5 + 1e-9)
+    cap = run.config["model"]["departure_cap"]                  # the departure cap's part of each weight
+    assert s["departure_cap"] == cap > 0 and res["arrays"]["base_error_coef"].shape == (4,)
+    dep, capped = (np.array([r[k] for r in res["records"]]) for k in ("departure", "cap_weight"))
+    np.testing.assert_allclose(capped, np.minimum(1.0, cap / dep), rtol=1e-9)
 
 
 @needs_pairs
@@ -96,3 +100,58 @@ def test_shipped_gate_scores_an_unseen_activity_higher_than_the_training_takes()
     unseen = scorer.score(window_context(eval_windows(everyday, 20, 30, 10, 0.01)["x"][:, :, :20]))
     assert len(unseen) > 20 and np.median(unseen) > 1.5 * np.median(train)
     assert np.mean(gate.weight(unseen)) < 0.75 < 0.9 < np.mean(gate.weight(train))
+
+
+@needs_pairs
+def test_base_error_fit_matches_the_normal_equations_and_grows_with_the_gap():
+    """The log-linear fit of interpolation's error (gate.fit_base_error) on the fit takes' windows equals the
+    normal equations' solution, and on real salsa a longer gap and faster dancers mean a larger error."""
+    from inbetween_jax.models.interaction.gate import base_error_features, fit_base_error
+    from inbetween_jax.models.interaction.samples import window_errors_cm
+    X, err = [], []
+    for L in (30, 50):
+        b = _windows(PAIRS, "fit", L)
+        ctx = b["x"][:, :, :20]
+        X.append(base_error_features(ctx, b["keypose"], L))
+        err.append(window_errors_cm(interpolation_base(ctx, b["keypose"], L), b))
+    X, err = np.concatenate(X), np.concatenate(err)
+    coef = fit_base_error(X, err)
+    np.testing.assert_allclose(coef, np.linalg.solve(X.T @ X, X.T @ np.log(err)), rtol=1e-6, atol=1e-8)
+    assert coef[1] > 0.3 and coef[2] > 0.1                  # log gap, log joint speed
+    resid = np.log(err) - X @ coef
+    assert 1 - resid.var() / np.log(err).var() > 0.25       # R^2: the context says a good part of it
+
+
+@needs_pairs
+def test_departure_cap_bounds_how_far_the_fill_leaves_interpolation():
+    """With the speed gate wide open, gate_rollouts with a cap c moves every window whose fill departs more than
+    c times its predicted interpolation error back onto that bound (positions, sample 0) and leaves the others
+    exactly as they were; every sample of a window gets the same weight."""
+    from inbetween_jax.models.interaction.gate import (base_error_features, departure_cm, fit_base_error,
+                                                       gate_rollouts, predicted_base_error_cm)
+    from inbetween_jax.models.interaction.samples import window_errors_cm
+    fit = _windows(PAIRS, "fit", 30)
+    ctx = fit["x"][:, :, :20]
+    coef = fit_base_error(base_error_features(ctx, fit["keypose"], 30),
+                          window_errors_cm(interpolation_base(ctx, fit["keypose"], 30), fit))
+    b = _windows(PAIRS, "val", 30)
+    ctx, kp = b["x"][:12, :, :20], b["keypose"][:12]
+    truth = np.asarray(b["x"][:12, :, 20:50])                       # real frames standing in for a rollout
+    rollouts = np.stack([truth, truth[::-1]])                       # sample 1: other windows' frames
+    base = interpolation_base(ctx, kp, 30)
+    predicted, away = predicted_base_error_cm(coef, ctx, kp, 30), departure_cm(truth, base)
+    cap = float(np.median(away / predicted))                        # half the windows over the bound
+    parts = {}
+    open_gate = (SpeedScore(), Gate(0.0, 1.0, enabled=False))
+    out, _, weight = gate_rollouts(open_gate, rollouts, ctx, kp, np.full(12, 30), cap=cap, coef=coef, parts=parts)
+    after = departure_cm(out[0], base)
+    over = away > cap * predicted
+    assert 3 <= over.sum() <= 9
+    np.testing.assert_allclose(after[over], cap * predicted[over], rtol=1e-4)
+    np.testing.assert_allclose(out[:, ~over], rollouts[:, ~over], atol=1e-6)
+    np.testing.assert_allclose(weight, parts["departure_weight"])
+    np.testing.assert_allclose(weight[over], cap * predicted[over] / away[over], rtol=1e-6)
+    mid = base[over, ..., :3] + weight[over][:, None, None, None, None] * (rollouts[1, over, ..., :3] - base[over, ..., :3])
+    np.testing.assert_allclose(out[1, over, ..., :3], mid, atol=1e-5)
+    with pytest.raises(ValueError, match="coefficients"):
+        gate_rollouts(open_gate, rollouts, ctx, kp, np.full(12, 30), cap=cap)

@@ -69,9 +69,9 @@ def test_interaction_infill_without_ckpt_on_the_dancers_files_as_given(tmp_path)
     assert (out / "sample_00_pair_sheet.png").exists()
     info = json.load(open(out / "infill.json"))            # the out-of-distribution gate, per window and sample
     if os.path.exists(os.path.join(shipped_dir("interaction"), "ood.npz")):
-        assert info["ood_score"] > 0 and 0.0 <= info["gate_weight"] <= 1.0
+        assert info["ood_score"] > 0 and 0.0 <= info["gate_weight"] <= info["departure_weight"] <= 1.0
         assert info["samples_ood"] == [{"ood_score": info["ood_score"], "gate_weight": info["gate_weight"],
-                                        "sample": "sample_00"}]
+                                        "departure_weight": info["departure_weight"], "sample": "sample_00"}]
     for path, name in ((PAIR_A, "sample_00_A.bvh"), (PAIR_B, "sample_00_B.bvh")):
         src, m = read_bvh(path), read_bvh(str(out / name))
         assert m.skeleton.names == src.skeleton.names and m.num_frames == 51

@@ -25,7 +25,7 @@ import numpy as np
 
 __all__ = ["ContextBank", "TravelScore", "SpeedScore", "Gate", "build_bank", "calibrate_gate", "gated_ratio",
            "BLEND_WEIGHTS", "OOD_FILE", "gate_note", "save_gate", "load_gate", "gated_records", "calibrate_run",
-           "CALIBRATION_FILE", "run_gate", "calibration_worst_case"]
+           "CALIBRATION_FILE", "run_gate", "calibration_worst_case", "load_gate_array"]
 
 OOD_FILE = "ood.npz"                              # the bank and gate in a run folder / shipped weights folder
 BLEND_WEIGHTS = (0.0, 0.25, 0.5, 0.75, 1.0)       # weights of the learned fill at which calibration scores windows
@@ -154,13 +154,16 @@ def gated_ratio(ratios_at, weights) -> np.ndarray:
 EPS = 1e-9     # ratios of equal errors come out 1 +- a few ulp: the limits compare with this slack
 
 
-def calibrate_gate(scores, ratios_at, p90_max: float = 1.05, worst_max: float = 1.5, groups=None) -> tuple:
+def calibrate_gate(scores, ratios_at, p90_max: float = 1.05, worst_max: float = 1.5, groups=None,
+                   scale=None) -> tuple:
     """Choose ``(lo, hi)`` on validation windows: the lowest mean gated ratio among the thresholds whose 90th
     percentile is at most ``p90_max``, maximum at most ``worst_max`` and (with ``groups``, a label per window,
     e.g. activity and length) every group's mean at most 1 (if none qualifies: the lowest 90th percentile).
     scores (B,); ratios_at (B, len(BLEND_WEIGHTS)): each window's error ratio to its base with the learned fill
-    blended in at each weight.  Returns ``(Gate, summary dict)``."""
+    blended in at each weight; ``scale`` (B,), when given, multiplies each window's gate weight (a bound the
+    model applies on top of the gate).  Returns ``(Gate, summary dict)``."""
     s = np.asarray(scores, np.float64)
+    scale = np.ones_like(s) if scale is None else np.asarray(scale, np.float64)
     labels = np.asarray(["all"] * len(s) if groups is None else [str(g) for g in groups])
     members = [labels == g for g in np.unique(labels)]
     qs = np.quantile(s, [0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 1.0])
@@ -169,7 +172,7 @@ def calibrate_gate(scores, ratios_at, p90_max: float = 1.05, worst_max: float = 
     candidates += [(np.inf, np.inf)]                         # never gate (the learned fill everywhere)
     for lo, hi in candidates:
         g = Gate(float(lo), float(hi), enabled=np.isfinite(lo))
-        r = gated_ratio(ratios_at, g.weight(s))
+        r = gated_ratio(ratios_at, g.weight(s) * scale)
         p90, worst, mean = np.quantile(r, 0.9), r.max(), r.mean()
         group_worst = max(float(r[m].mean()) for m in members)
         ok = p90 <= p90_max + EPS and worst <= worst_max + EPS and group_worst <= 1.0 + EPS
@@ -189,14 +192,15 @@ def gate_note(score: float, weight: float, base: str) -> str:
     return f"out-of-distribution score {score:.2f}: learned fill kept at {weight:.2f} over its base ({base})"
 
 
-def save_gate(run_dir: str, bank, gate: Gate, summary: dict | None = None) -> str:
+def save_gate(run_dir: str, bank, gate: Gate, summary: dict | None = None, arrays: dict | None = None) -> str:
     """Write ``ood.npz`` (the scorer -- a :class:`ContextBank`, :class:`TravelScore` or :class:`SpeedScore` -- +
-    gate thresholds + the calibration summary's numbers) atomically."""
+    gate thresholds + the calibration summary's numbers + a model's own ``arrays``) atomically."""
     path = os.path.join(run_dir, OOD_FILE)
     extra = {f"summary_{k}": np.asarray(v) for k, v in (summary or {}).items()
              if isinstance(v, (int, float, bool, np.floating, np.integer))}
     tmp = path + ".tmp.npz"
-    np.savez_compressed(tmp, **bank.arrays(), gate_lo=np.float64(gate.lo), gate_hi=np.float64(gate.hi), **extra)
+    np.savez_compressed(tmp, **bank.arrays(), gate_lo=np.float64(gate.lo), gate_hi=np.float64(gate.hi), **extra,
+                        **{k: np.asarray(v) for k, v in (arrays or {}).items()})
     os.replace(tmp, path)
     return path
 
@@ -224,6 +228,22 @@ def load_gate(run_dir: str):
         raise RunError(f"{path}: not a readable out-of-distribution gate ({type(e).__name__}: {e})") from None
 
 
+def load_gate_array(run_dir: str, key: str, why: str) -> np.ndarray:
+    """A model's own array ``key`` of ``run_dir/ood.npz`` (written by its calibration).
+
+    Raises:
+        RunError: the file or the array is missing or unreadable; ``why`` names the setting that needs it.
+    """
+    from inbetween_jax.train.run import RunError
+    path = os.path.join(run_dir, OOD_FILE)
+    try:
+        with np.load(path) as z:
+            return np.asarray(z[key], np.float64)
+    except (OSError, ValueError, KeyError) as e:
+        raise RunError(f"{path}: {why} needs '{key}', which it does not hold ({type(e).__name__}; recalibrate with "
+                       "`inbetween calibrate-gate RUN_DIR`)") from None
+
+
 CALIBRATION_FILE = "ood_calibration.json"        # per-window scores and ratios behind the gate (figures, tables)
 
 
@@ -236,7 +256,7 @@ def calibrate_run(run_dir: str, source: str, **kwargs) -> dict:
     from inbetween_jax.train.run import load_run
     run = load_run(run_dir)
     res = importlib.import_module(f"inbetween_jax.models.{run.model}.calibrate").calibrate(run, source, **kwargs)
-    save_gate(run_dir, res["bank"], res["gate"], res["summary"])
+    save_gate(run_dir, res["bank"], res["gate"], res["summary"], res.get("arrays"))
     tmp = os.path.join(run_dir, CALIBRATION_FILE + ".tmp")
     with open(tmp, "w") as f:
         json.dump({"model": run.model, "step": int(run.step), "source": source, "summary": res["summary"],
@@ -249,7 +269,7 @@ def gated_records(calibration: dict, gate) -> list:
     """Records of a gate's calibration file (``ood_calibration.json``: the validation windows) at the weights
     ``gate`` gives them (:func:`inbetween_jax.models.ood.gated_ratio`)."""
     recs = calibration["records"]
-    w = gate.weight([r["score"] for r in recs])
+    w = gate.weight([r["score"] for r in recs]) * np.array([r.get("cap_weight", 1.0) for r in recs])
     ratio = gated_ratio([r["ratios_at"] for r in recs], w)
     return [{"name": r["name"], "frames": r["frames"], "ratio": float(x), "score": r["score"], "weight": float(wi)}
             for r, x, wi in zip(recs, ratio, w)]

@@ -106,7 +106,7 @@ def _model_method(trained, use_refiner=None, gap="true", latent_scale=None, use_
                 out = apply_bank(trained.bank, cfg.model, out, ctx, b["keypose"], g, feet)
             if trained.gate is not None and cfg.model.ood_gate:     # toward interpolation (.gate)
                 from inbetween_jax.models.interaction.gate import gate_rollouts
-                out = gate_rollouts(trained.gate, out, ctx, b["keypose"], g)[0]
+                out = gate_rollouts(trained.gate, out, ctx, b["keypose"], g, **trained.gate_kwargs())[0]
             return ease_into_keypose(out, b["keypose"], g, cfg.model.ease_frames) if cfg.model.ease_frames else out
         if not banked:
             return out

@@ -149,6 +149,9 @@ class ModelConfig:
                                    # s-th nearest bank window alone at this weight, with its texture (0: off)
     ood_gate: bool = False         # inference: blend toward per-character interpolation as the window's context
                                    # and keyposes leave the training takes (:mod:`.gate`; ood.npz in the run folder)
+    departure_cap: float = 0.0     # inference, with the gate: the fill departs from interpolation by at most this
+                                   # many times interpolation's error as predicted from the context (:mod:`.gate`,
+                                   # ``departure_weight``; 0: off)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -45,10 +45,16 @@ class Trained:
     run_dir: str
     bank: MotionBank | None = None    # motion bank (``bank.npz`` in the run folder) when the config uses one
     gate: tuple | None = None         # (scorer, Gate) of ``ood.npz`` when ``model.ood_gate`` is on (:mod:`.gate`)
+    base_error: np.ndarray | None = None  # (4,) ood.npz's interpolation-error fit when ``model.departure_cap`` is on
+
+    def gate_kwargs(self) -> dict:
+        """:func:`.gate.gate_rollouts`'s departure cap arguments for this run."""
+        return {"cap": self.cfg.model.departure_cap, "coef": self.base_error}
 
 
-def load(run: Run) -> Trained:
-    """Restore the parameters of ``run`` (its latest / chosen checkpoint).
+def load(run: Run, with_gate: bool = True) -> Trained:
+    """Restore the parameters of ``run`` (its latest / chosen checkpoint), with its gate unless ``with_gate`` is
+    false (calibration, which writes it).
 
     Raises:
         RunError: not an interaction run, incomplete ``run.json`` or an unreadable checkpoint (one line).
@@ -65,9 +71,15 @@ def load(run: Run) -> Trained:
     target = jax.eval_shape(lambda k: init_state(cfg, J, k), jax.random.key(0))
     state = restore_state(run, target)
     skel = Skeleton.from_dict(run.skeleton) if run.skeleton else None
-    from inbetween_jax.models.ood import run_gate
+    from inbetween_jax.models.interaction.gate import BASE_ERROR_KEY
+    from inbetween_jax.models.ood import load_gate_array, run_gate
+    if cfg.model.departure_cap < 0:
+        raise RunError(f"{run.run_dir}: model.departure_cap must not be negative (got {cfg.model.departure_cap})")
+    gate = run_gate(run.run_dir, cfg.model.ood_gate) if with_gate else None
+    capped = gate is not None and cfg.model.departure_cap > 0
+    coef = load_gate_array(run.run_dir, BASE_ERROR_KEY, "model.departure_cap") if capped else None
     return Trained(cfg, state["params"], J, fa, skel, int(run.step), run.run_dir,
-                   load_bank(run.run_dir, cfg, J), run_gate(run.run_dir, cfg.model.ood_gate))
+                   load_bank(run.run_dir, cfg, J), gate, coef)
 
 
 def load_bank(run_dir: str, cfg: Config, num_joints: int) -> MotionBank | None:
@@ -101,7 +113,8 @@ def infill_features(trained: Trained, context, keyframes, frames: int, num_sampl
     frame ``frames``; the paper's model has none and only its output is cut.  A run whose config turns the
     motion bank on gets its in-between and texture over the frames (:func:`.bank.apply_bank`); with
     ``model.ood_gate`` the frames are then moved toward per-character interpolation by the out-of-distribution
-    gate (:mod:`.gate`), and ``gate_info`` (a dict, when given) receives ``ood_score`` and ``gate_weight``.
+    gate (:mod:`.gate`), and ``gate_info`` (a dict, when given) receives ``ood_score``, ``gate_weight`` and
+    ``departure_weight`` (the part of the weight that ``model.departure_cap`` sets).
     Returns (S, 2, frames, J, 9) world features (float64).
     """
     cfg, fa = trained.cfg, trained.forward_axis
@@ -116,9 +129,12 @@ def infill_features(trained: Trained, context, keyframes, frames: int, num_sampl
         out = apply_bank(trained.bank, cfg.model, out, b["x"], b["keypose"], [frames], feet)
     if trained.gate is not None and cfg.model.ood_gate:   # toward interpolation as the window leaves the training takes
         from inbetween_jax.models.interaction.gate import gate_rollouts
-        out, score, weight = gate_rollouts(trained.gate, out, b["x"], b["keypose"], [frames])
+        parts = {}
+        out, score, weight = gate_rollouts(trained.gate, out, b["x"], b["keypose"], [frames],
+                                           parts=parts, **trained.gate_kwargs())
         if gate_info is not None:
-            gate_info.update(ood_score=float(score[0]), gate_weight=float(weight[0]))
+            gate_info.update(ood_score=float(score[0]), gate_weight=float(weight[0]),
+                             departure_weight=float(parts["departure_weight"][0]))
     if cfg.model.ease_frames:      # the last frames take up the jump onto the keypose (.bank.ease_into_keypose)
         out = ease_into_keypose(out, b["keypose"], [frames], cfg.model.ease_frames)
     out = np.asarray(out, np.float64)[:, 0, :, :frames]                        # (S, 2, frames, J, 9)
