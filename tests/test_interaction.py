@@ -241,3 +241,24 @@ def test_mirrored_features_are_the_features_of_the_mirrored_motion(name, side):
     ref = ifeat.world_joint_features(m.mirrored())
     got = ifeat.mirror_feats(ifeat.world_joint_features(m), m.skeleton.mirror_map(), side)
     np.testing.assert_allclose(got, ref, atol=1e-6)
+
+
+@pytest.mark.parametrize("cin,cout,k,n", [(9, 8, 3, 15), (8, 8, 3, 15), (4, 6, 5, 12)])
+def test_banded_conv_equals_the_flax_conv_and_its_gradients(cin, cout, k, n):
+    """layers.conv_same (one matmul with the kernel's banded matrix) against nnx.Conv itself: values and the
+    gradients for the input, kernel and bias."""
+    from inbetween_jax.models.interaction.layers import conv_same
+    conv = nnx.Conv(cin, cout, k, rngs=nnx.Rngs(3))
+    conv.bias[...] = jax.random.normal(jax.random.key(4), (cout,))
+    x = jax.random.normal(jax.random.key(5), (6, n, cin))
+    np.testing.assert_allclose(conv_same(conv, x), conv(x), atol=1e-5)
+    w = jax.random.normal(jax.random.key(6), (6, n, cout))             # a cotangent
+    graphdef, params = nnx.split(conv)
+
+    def loss(apply, p, xx):
+        return jnp.sum(apply(nnx.merge(graphdef, p), xx) * w)
+    got = jax.grad(lambda p, xx: loss(conv_same, p, xx), argnums=(0, 1))(params, x)
+    want = jax.grad(lambda p, xx: loss(lambda c, v: c(v), p, xx), argnums=(0, 1))(params, x)
+    for g, r in zip(jax.tree.leaves(got), jax.tree.leaves(want)):
+        np.testing.assert_allclose(g, r, rtol=1e-5, atol=1e-4)
+    assert len(jax.tree.leaves(got)) == 3                               # bias, kernel, input

@@ -134,7 +134,7 @@ class ModelConfig:
     residual: bool = False         # predict a residual on a lerp from the last input frame toward the keypose
     lerp_frames: int = 30          # residual without tta: the lerp reaches the keypose this many frames ahead
     tta_speed: float = 0.03        # tta rollouts without a given gap: guess gap = keypose distance / this (m/frame)
-    members: int = 1               # ensemble: this many networks trained side by side (vmap); a rollout is the
+    members: int = 1               # ensemble: this many networks trained side by side; a rollout is the
                                    # mean of the members' whole rollouts
     bank_k: int = 0                # inference: blend in the mean of the k nearest motion-bank windows (0: off)
     bank_weight: float = 0.0       # inference: its weight (0: the network alone; 1: the bank alone)

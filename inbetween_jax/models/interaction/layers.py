@@ -32,6 +32,22 @@ class GraphConv(nnx.Module):
         return jnp.einsum("ij,bjf->bif", self.adj[...], self.lin(x))
 
 
+def conv_same(conv: nnx.Conv, x):
+    """``conv(x)`` of a 1D :class:`nnx.Conv` (odd kernel, stride 1, ``'SAME'`` padding) on x (B, N, C) -> (B, N,
+    O), computed as one matmul with the banded (Toeplitz) matrix of its kernel: at these few channels and
+    positions XLA:CPU's convolutions (and their gradients) cost far more than the multiply-adds (about a fifth of
+    the interaction training step, docs/results/speed.md).  The same function and parameters; the sums run in
+    another order."""
+    w = conv.kernel[...]                                            # (k, C, O)
+    k, C, O = w.shape
+    N = x.shape[1]
+    t, i, o = np.meshgrid(np.arange(k), np.arange(N), np.arange(N), indexing="ij")
+    taps = (i == o + t - (k - 1) // 2).astype(np.float32)           # (k, N_in, N_out): tap t links i to o
+    band = jnp.einsum("tio,tcd->icod", taps, w).reshape(N * C, N * O)
+    y = (x.reshape(x.shape[0], N * C) @ band).reshape(x.shape[0], N, O)
+    return y if conv.bias is None else y + conv.bias[...]
+
+
 class ConvGCN(nnx.Module):
     """Conv1d over coefficients + GCN over joints.
 
@@ -59,8 +75,8 @@ class ConvGCN(nnx.Module):
         if self.conv:
             K, C = x.shape[2:]
             h = x.reshape(B * J, K, C)
-            h = jnp.tanh(self.c1(h))
-            h = jnp.tanh(self.c2(h))
+            h = jnp.tanh(conv_same(self.c1, h))
+            h = jnp.tanh(conv_same(self.c2, h))
             h = h.reshape(B, J, -1)
         else:
             h = x

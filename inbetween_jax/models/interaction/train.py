@@ -9,7 +9,7 @@ gradients of its own loss, so one Adam over all groups equals independent optimi
 
 State: ``{"params": {gen, ref, pae, disc} (nested dicts of arrays), "opt": optax state, "step": int32}``.  With
 ``model.members`` M > 1 every parameter and optimiser array has a leading member axis and one step trains the M
-members independently (``vmap``: each its own batch, key, gradient clip and Adam state).
+members independently (each its own batch, key, gradient clip and Adam state).
 """
 from __future__ import annotations
 
@@ -140,9 +140,13 @@ def make_training(cfg, data: PairSet) -> Training:
     def step_fn(state, batch, key):
         if M == 1:
             params, opt, metrics = member_step(state["params"], state["opt"], batch, key, state["step"])
-        else:       # independent members: own parameters, optimiser state, batch and key; mean metrics
-            params, opt, metrics = jax.vmap(member_step, in_axes=(0, 0, 0, 0, None))(
-                state["params"], state["opt"], batch, jax.random.split(key, M), state["step"])
+        else:       # independent members: own parameters, optimiser state, batch and key; mean metrics.  M
+            # subgraphs, not a vmap: XLA:CPU runs them side by side on the cores, and a vmapped step (batched
+            # dots, grouped convolutions) took 1.2-1.3x as long (docs/results/speed.md)
+            keys = jax.random.split(key, M)
+            outs = [member_step(*jax.tree.map(lambda v, i=i: v[i], (state["params"], state["opt"], batch)),
+                                keys[i], state["step"]) for i in range(M)]
+            params, opt, metrics = jax.tree.map(lambda *v: jnp.stack(v), *outs)
             metrics = jax.tree.map(lambda v: jnp.mean(v, axis=0), metrics)
         return {"params": params, "opt": opt, "step": state["step"] + 1}, metrics
 
