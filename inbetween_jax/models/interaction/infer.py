@@ -223,7 +223,11 @@ def infill(args, run: Run) -> InfillResult:
     summary.update(sample_spread([tuple(m) for _, m, _ in samples]))       # both dancers' joints, per sample
     if gated:
         from inbetween_jax.models.ood import gate_note
-        notes.append(gate_note(gated["ood_score"], gated["gate_weight"], "per-character interpolation"))
+        note = gate_note(gated["ood_score"], gated["gate_weight"], "per-character interpolation")
+        if gated["departure_weight"] < 0.999:        # the cap, not the speed score, held the learned part back
+            note += (f" (of which model.departure_cap keeps {gated['departure_weight']:.2f}: the fill left "
+                     "interpolation by more than interpolation's own error is expected to be here)")
+        notes.append(note)
         summary["samples_ood"] = [dict(gated, sample=n) for n, _, _ in samples]
     return InfillResult(samples=samples, summary=summary, what="start / keyframe", notes=list(dict.fromkeys(notes)))
 
