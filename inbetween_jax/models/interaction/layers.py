@@ -34,10 +34,11 @@ class GraphConv(nnx.Module):
 
 def conv_same(conv: nnx.Conv, x):
     """``conv(x)`` of a 1D :class:`nnx.Conv` (odd kernel, stride 1, ``'SAME'`` padding) on x (B, N, C) -> (B, N,
-    O), computed as one matmul with the banded (Toeplitz) matrix of its kernel: at these few channels and
-    positions XLA:CPU's convolutions (and their gradients) cost far more than the multiply-adds (about a fifth of
-    the interaction training step, docs/results/speed.md).  The same function and parameters; the sums run in
-    another order."""
+    O), computed as one matmul with the banded (Toeplitz) matrix of its kernel.  At these few channels and
+    positions XLA:CPU's convolutions (and their gradients) cost far more than the multiply-adds; with the
+    ensemble's members side by side (or vmapped) the matmul made the training step 1.3-1.5x faster, while one
+    member alone runs equally fast either way (docs/results/speed.md).  The same function and parameters; the
+    sums run in another order."""
     w = conv.kernel[...]                                            # (k, C, O)
     k, C, O = w.shape
     N = x.shape[1]
