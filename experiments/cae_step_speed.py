@@ -109,36 +109,49 @@ def grad():
         print(f"| {name} | {times[name]:.1f} | {base / times[name]:.2f}x | {values[name]:.7f} |")
 
 
-def step_ms(model: str) -> float:
-    """Median of 9 train steps of ``model`` (cae: ``improved``; interaction: ``improved`` with 3 members;
-    scvae-cpu / scvae-paper: the speed section's S-CVAE step) in this process."""
+def step_call(model: str):
+    """One train step of ``model`` as a callable (cae: ``improved``; interaction: ``improved`` with 3 members;
+    scvae-cpu / scvae-paper: the speed section's S-CVAE step, batch 32, 50 frames) on one real batch; each call
+    advances the state and waits for the step."""
+    import dataclasses
     import jax
     from inbetween_jax.train.config import apply_overrides
     from inbetween_jax.train.loop import make_step_fn, strongly_typed
     if model.startswith("scvae"):
         from inbetween_jax.data import load_dataset
-        from inbetween_jax.evaluation import speed
+        from inbetween_jax.models.scvae import train as T
+        from inbetween_jax.models.scvae.config import get_config
         from inbetween_jax.models.scvae.features import TrainData, compute_stats
         win = load_dataset(None, "benchmark")
-        return speed._train_step_row(model.split("-")[1], win, TrainData.from_windows(win), compute_stats(win), 9,
-                                     None)[0]["jax_step_ms"]
-    if model == "interaction":
-        from inbetween_jax.models.interaction import train as T
-        from inbetween_jax.models.interaction.config import get_config
-        cfg = apply_overrides(get_config("improved"), ["model.members=3"])
+        data, cfg = TrainData.from_windows(win), get_config(model.split("-")[1])
+        cfg = dataclasses.replace(cfg, data=dataclasses.replace(cfg.data, trans_max=50))
+        rng = np.random.default_rng(0)
+        batch = T.make_batch(data, rng.integers(0, len(data), 32), rng.integers(0, data.q.shape[1] - 51, 32), 51, 51)
+        init, step_fn = T.make_init_fn(cfg, compute_stats(win), data.q.shape[2]), T.make_train_step(cfg, data.parents, 51)
     else:
-        from inbetween_jax.models.cae import train as T
-        from inbetween_jax.models.cae.config import get_config
-        cfg = get_config("improved")
-    tr = T.make_training(cfg, T.load_data(cfg, None, "train"))
-    batch = jax.tree.map(jax.numpy.asarray, tr.batch_fn(tr.num_steps // 2, jax.random.key(2)))
-    state = {"s": jax.tree.map(strongly_typed, tr.init_fn(jax.random.key(0)))}
-    step = make_step_fn(tr.step_fn, jax.random.key(1))
+        if model == "interaction":
+            from inbetween_jax.models.interaction import train as T
+            from inbetween_jax.models.interaction.config import get_config
+            cfg = apply_overrides(get_config("improved"), ["model.members=3"])
+        else:
+            from inbetween_jax.models.cae import train as T
+            from inbetween_jax.models.cae.config import get_config
+            cfg = get_config("improved")
+        tr = T.make_training(cfg, T.load_data(cfg, None, "train"))
+        batch, init, step_fn = tr.batch_fn(tr.num_steps // 2, jax.random.key(2)), tr.init_fn, tr.step_fn
+    batch = jax.tree.map(jax.numpy.asarray, batch)
+    state = {"s": jax.tree.map(strongly_typed, init(jax.random.key(0)))}
+    step = make_step_fn(step_fn, jax.random.key(1))
 
     def one():
         state["s"], m = step(state["s"], batch, np.int32(0))
-        return m
-    return _ms(one)
+        return jax.block_until_ready(m)
+    return one
+
+
+def step_ms(model: str) -> float:
+    """Median of 9 train steps of ``model`` (:func:`step_call`) in this process."""
+    return _ms(step_call(model))
 
 
 def flags(rounds: int):

@@ -25,8 +25,9 @@ def main() -> None:
     p.add_argument("--stop-at", type=int, default=None)
     p.add_argument("overrides", nargs="*", metavar="key=value")
     a = p.parse_intermixed_args()
-    from inbetween_jax import xla_cpu
-    xla_cpu.configure(a.model)                                  # as `inbetween train MODEL` runs
+    from inbetween_jax import malloc, xla_cpu
+    malloc.reexec()                                             # as `inbetween train MODEL` runs: its malloc
+    xla_cpu.configure(a.model)                                  # and XLA:CPU settings
     from inbetween_jax.models import REGISTRY
     from inbetween_jax.runner import build_config, train_model
     from inbetween_jax.train import config_to_dict

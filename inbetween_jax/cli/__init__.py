@@ -94,9 +94,11 @@ def main(argv=None) -> int:
 
 
 def entry() -> None:
-    """Console-script entry point: the measured XLA:CPU settings (:mod:`inbetween_jax.xla_cpu`), prompt Ctrl-C
+    """Console-script entry point: a faster malloc where the machine has one (:mod:`inbetween_jax.malloc`; the
+    command restarts once under it), the measured XLA:CPU settings (:mod:`inbetween_jax.xla_cpu`), prompt Ctrl-C
     handling, then :func:`main`."""
-    from inbetween_jax import xla_cpu
+    from inbetween_jax import malloc, xla_cpu
+    malloc.reexec()
     from inbetween_jax.cli import interrupt
     xla_cpu.configure(xla_cpu.model_in_argv(sys.argv[1:]))
     quiet = bool(os.environ.get(interrupt.QUIET_ENV))
