@@ -43,6 +43,7 @@ import numpy as np
 from inbetween_jax.evaluation.speed_timing import (COMPILE_TIMEOUT_S, TORCH_BACKENDS,  # noqa: F401
                                                    compare_steps as _compare_steps, compile_pair as _compile_pair,
                                                    first_call_s as _first_call_s, side_by_side as _side_by_side)
+from inbetween_jax.malloc import MARK_ENV as MALLOC_MARK
 
 __all__ = ["run", "markdown", "scvae_rows", "cae_rows", "cae_train_rows", "interaction_rows", "TORCH_BACKENDS"]
 
@@ -259,7 +260,8 @@ def _step_cells(w: dict, skip: str) -> str:
 
 def markdown(r) -> str:
     s, c, i = r["scvae"], r["cae"], r["interaction"]
-    lines = [f"## Speed (JAX {r['jax']}, {r['device']}, {r['cpus']} cores; medians after warm-up, one process)", "",
+    lines = [f"## Speed (JAX {r['jax']}, {r['device']}, {r['cpus']} cores, malloc {r.get('malloc', 'system')}; "
+             "medians after warm-up, one process)", "",
              f"Matmul peak (float32 1024^3, measured): {r['peak_gflops']:.1f} GFLOP/s.", "",
              "Training steps, timed side by side (each round calls every variant once): JAX's jitted step against "
              "PyTorch eager and `torch.compile` (the first backend of "
@@ -334,7 +336,8 @@ def run(source=None, results_dir="results", reps=10, quick=False, torch_ref=None
     src = resolve_source(source)
     t0 = time.time()
     r = {"source": src, "jax": jax.__version__, "device": str(jax.devices()[0].device_kind),
-         "platform": platform.processor() or platform.machine(), "cpus": os.cpu_count(), "reps": reps}
+         "platform": platform.processor() or platform.machine(), "cpus": os.cpu_count(), "reps": reps,
+         "malloc": os.path.basename(os.environ.get(MALLOC_MARK, "")) or "system"}     # inbetween_jax.malloc
     if torch_ref is not None and torch_ref.available():
         r["torch"] = torch_ref.torch.__version__
     elif torch_skip or torch_ref is not None:
