@@ -1,12 +1,13 @@
 """A faster ``malloc`` for the ``inbetween`` command, where the machine has one (docs/results/speed.md, "malloc").
 
 XLA:CPU allocates and frees the temporaries of every compiled call through ``malloc``.  glibc's per-thread arenas
-hand those pages back to the kernel and fault them in again on the next call: about 30,700 minor page faults and
-80-90 ms of system CPU per S-CVAE ``cpu``-width training step of about 210 ms on this project's 2-core machines
+hand those pages back to the kernel and fault them in again on the next call: about 33,000 minor page faults and
+90 ms of system CPU per S-CVAE ``cpu``-width training step of about 220 ms on this project's 2-core machines
 (``experiments/malloc_speed.py``).  tcmalloc (Debian's ``libtcmalloc-minimal4``) and jemalloc (``libjemalloc2``,
-with its page decay off) keep the pages, and the same steps run 1.3-1.5x faster.  glibc alone cannot be tuned out
-of it: its trim / mmap settings leave the faults, and a single arena (``MALLOC_ARENA_MAX=1``) removes them but
-serialises XLA's threads on one lock, which costs more than it saves.
+with its page decay off) keep the pages; under tcmalloc the training steps run 1.1-1.35x faster (CAE 1.35x,
+S-CVAE 1.31x / 1.11x at cpu / paper width, interaction 1.10x).  glibc alone cannot be tuned out of it: its trim /
+mmap settings leave the faults, and a single arena (``MALLOC_ARENA_MAX=1``) removes them but serialises XLA's
+threads on one lock, which costs as much as it saves or more.
 
 :func:`reexec` restarts the running command once with the first library of :data:`LIBRARIES` that the dynamic
 linker finds in ``LD_PRELOAD``; the ``inbetween`` console script calls it first.  Nothing changes (and nothing is
