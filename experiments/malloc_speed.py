@@ -1,5 +1,5 @@
-"""Training steps under each malloc: glibc's, glibc with one arena that keeps its pages, tcmalloc and jemalloc (docs/results/speed.md,
-"malloc"; :mod:`inbetween_jax.malloc`).
+"""Training steps under each malloc: glibc's, glibc with one arena that keeps its pages, tcmalloc and jemalloc
+(docs/results/speed.md, "malloc"; :mod:`inbetween_jax.malloc`).
 
     python experiments/malloc_speed.py [--models cae,interaction,scvae-cpu,scvae-paper] [--rounds 3] [--steps 9]
                                        [--conds glibc,glibc_one_arena,tcmalloc,jemalloc]
@@ -8,8 +8,10 @@
 One fresh process per model, condition and round (conditions in rotating order), each timing ``--steps`` train
 steps after two warm-up steps (``experiments/cae_step_speed.py``'s steps).  Per step: wall ms, minor page faults,
 user and system CPU ms (``getrusage``).  The table gives, per model and condition, the median over rounds of each
-process's median, and the speed-up over glibc as the median of the per-round ratios.  Conditions whose library
-the dynamic linker does not find are skipped (Debian: ``apt-get install libtcmalloc-minimal4 libjemalloc2``).
+process's median, and the speed-up over glibc as the median of the per-round ratios.  tcmalloc and jemalloc run
+exactly as ``inbetween`` preloads them (:data:`inbetween_jax.malloc.LIBRARIES`, found by
+:func:`inbetween_jax.malloc.find`); a condition whose library is not installed is skipped (Debian: ``apt-get
+install libtcmalloc-minimal4 libjemalloc2``).
 ``torch-cae`` / ``torch-scvae-cpu`` run the speed section's rows instead (JAX, PyTorch eager and inductor on one
 batch, medians of ``--steps`` calls; needs ``pip install "inbetween_jax[bench]"``): the malloc is the process's,
 so PyTorch runs under it too.
@@ -24,12 +26,14 @@ import time
 
 import numpy as np
 
+from inbetween_jax import malloc
+
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 CONDITIONS = {"glibc": {},
               "glibc_one_arena": {"MALLOC_ARENA_MAX": "1", "MALLOC_MMAP_MAX_": "0",     # and its pages kept
                                   "MALLOC_TRIM_THRESHOLD_": str(1 << 40), "MALLOC_TOP_PAD_": str(1 << 28)},
-              "tcmalloc": {"lib": "tcmalloc_minimal"},
-              "jemalloc": {"lib": "jemalloc", "MALLOC_CONF": "dirty_decay_ms:-1,muzzy_decay_ms:-1"}}
+              "tcmalloc": malloc.LIBRARIES[0],            # (library, its environment) as inbetween preloads it
+              "jemalloc": malloc.LIBRARIES[1]}
 
 
 def torch_child(model: str, steps: int) -> None:
@@ -69,17 +73,13 @@ def child(model: str, steps: int) -> None:
 
 def condition_env(name: str):
     """The environment of a condition, or None when its library is not installed."""
-    import ctypes.util
     env = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", "XLA_FLAGS", "MALLOC_CONF")}
-    env["INBETWEEN_MALLOC"] = "system"
-    extra = dict(CONDITIONS[name])
-    lib = extra.pop("lib", None)
-    if lib:
-        soname = ctypes.util.find_library(lib)
-        if not soname:
-            return None
-        extra["LD_PRELOAD"] = soname
-    return {**env, **extra}
+    env[malloc.OPT_OUT_ENV] = "system"                  # the children never restart themselves
+    cond = CONDITIONS[name]
+    if isinstance(cond, dict):
+        return {**env, **cond}
+    found = malloc.find(libraries=(cond,))
+    return None if found is None else {**env, **found[1], "LD_PRELOAD": found[0]}
 
 
 def main() -> None:

@@ -9,8 +9,8 @@ S-CVAE 1.31x / 1.11x at cpu / paper width, interaction 1.10x).  glibc alone cann
 mmap settings leave the faults, and a single arena (``MALLOC_ARENA_MAX=1``) removes them but serialises XLA's
 threads on one lock, which costs as much as it saves or more.
 
-:func:`reexec` restarts the running command once with the first library of :data:`LIBRARIES` that the dynamic
-linker finds in ``LD_PRELOAD``; the ``inbetween`` console script calls it first.  Nothing changes (and nothing is
+:func:`reexec` restarts the running command once with the first library of :data:`LIBRARIES` present in
+:data:`LIBRARY_DIRS` in ``LD_PRELOAD``; the ``inbetween`` console script calls it first.  Nothing changes (and nothing is
 restarted) when none is installed, when ``LD_PRELOAD`` is already set, or when ``INBETWEEN_MALLOC=system`` asks
 for the C library's own ``malloc``.  The numbers computed are the same with either; only the time differs.
 Child processes (multi-process training's workers) inherit the preload through the environment.
@@ -55,8 +55,8 @@ def preload_env(environ=None, found=None) -> dict | None:
     found = find() if found is None else found
     if not found:
         return None
-    soname, extra = found
-    return {**env, **{k: v for k, v in extra.items() if k not in env}, "LD_PRELOAD": soname, MARK_ENV: soname}
+    path, extra = found
+    return {**env, **{k: v for k, v in extra.items() if k not in env}, "LD_PRELOAD": path, MARK_ENV: path}
 
 
 def reexec() -> None:
