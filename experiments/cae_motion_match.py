@@ -28,7 +28,7 @@ from inbetween_jax.models.cae.bank import MatchBank, departure, gate_distance, m
 from inbetween_jax.models.cae.features import body_frame_features, to_global
 from inbetween_jax.models.cae.infer import fill, load
 from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
-from inbetween_jax.models.ood import BLEND_WEIGHTS, calibrate_gate, gated_ratio
+from inbetween_jax.models.ood import BLEND_WEIGHTS, calibrate_gate, gated_ratio, held_out_ratios
 from inbetween_jax.train.run import load_run
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -130,15 +130,8 @@ for (k, disp), rs in records.items():
           f"{np.mean([x['base_x_linear'] for x in rs]):.3f}); open (w > 0.5) {np.mean(wts > 0.5):.2f}; "
           f"ungated mean {np.mean([x['ratios_at'][-1] for x in rs]):.3f}")
     # each subject scored with the thresholds chosen on the other four (how much the choice depends on them)
-    held = np.zeros(len(rs))
     subjects = np.array([x["subject"] for x in rs])
-    for subj in sorted(set(subjects)):
-        out_ = subjects == subj
-        fit = [x for x, o in zip(rs, out_) if not o]
-        g_ = calibrate_gate([x["score"] for x in fit], [x["ratios_at"] for x in fit],
-                            groups=[x["group"] for x in fit])[0]
-        held[out_] = gated_ratio([x["ratios_at"] for x, o in zip(rs, out_) if o],
-                                 g_.weight([x["score"] for x, o in zip(rs, out_) if o]))
+    held = held_out_ratios([x["score"] for x in rs], [x["ratios_at"] for x in rs], [x["group"] for x in rs], subjects)
     sh = summarise(list(held))
     print(f"  leave one subject out: mean {sh['mean']:.3f} p90 {sh['p90']:.3f} max {sh['max']:.3f} "
           f"(per subject {', '.join(f'{u} {held[subjects == u].mean():.3f}' for u in sorted(set(subjects)))})")
@@ -170,12 +163,7 @@ if a.speed_scales:                  # the distance relative to the body's speed 
         sc = np.array([gate_distance(x["score"], x["beside"], c) for x in rs])
         gate, summ = calibrate_gate(sc, ratios, groups=groups)
         r = gated_ratio(ratios, gate.weight(sc))
-        held = np.zeros(len(rs))
-        for subj in sorted(set(subjects)):
-            o = subjects == subj
-            g_ = calibrate_gate(sc[~o], [x for x, k in zip(ratios, o) if not k],
-                                groups=[x for x, k in zip(groups, o) if not k])[0]
-            held[o] = gated_ratio([x for x, k in zip(ratios, o) if k], g_.weight(sc[o]))
+        held = held_out_ratios(sc, ratios, groups, subjects)
         print(f"distance / (1 + speed beside / {c}): lo {gate.lo:.5f} hi {gate.hi:.5f} (limits met: "
               f"{summ['meets_limits']}); all {r.mean():.4f} max {r.max():.3f}; validation {r[val].mean():.3f}; fit "
               f"{r[~val].mean():.4f}; leave one subject out: mean {held.mean():.4f} max {held.max():.3f}")

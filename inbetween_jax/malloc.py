@@ -20,7 +20,8 @@ from __future__ import annotations
 import os
 import sys
 
-__all__ = ["LIBRARIES", "LIBRARY_DIRS", "OPT_OUT_ENV", "MARK_ENV", "find", "preload_env", "reexec"]
+__all__ = ["LIBRARIES", "LIBRARY_DIRS", "OPT_OUT_ENV", "MARK_ENV", "elf_kind", "find", "preload_env",
+           "reexec"]
 
 # (shared library, environment it needs): tcmalloc first (no settings needed); jemalloc's default 10 s decay
 # returns pages between the seconds-long steps of the larger models, so it is switched off.
@@ -32,15 +33,34 @@ OPT_OUT_ENV = "INBETWEEN_MALLOC"          # "system": keep the C library's mallo
 MARK_ENV = "INBETWEEN_MALLOC_PRELOADED"   # set in the restarted process: never restart twice
 
 
-def find(libraries=LIBRARIES, dirs=LIBRARY_DIRS):
-    """``(path, environment)`` of the first library present in ``dirs`` (Linux only), else None.  A file check,
-    no subprocess: every ``inbetween`` command pays it at start."""
+def elf_kind(path: str):
+    """``(class, byte order, machine)`` from an ELF file's header (bytes 4, 5 and 18-19), or None for a file that
+    cannot be read or is not ELF."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(20)
+    except OSError:
+        return None
+    if len(head) < 20 or head[:4] != b"\x7fELF":
+        return None
+    return head[4], head[5], head[18:20]
+
+
+def find(libraries=LIBRARIES, dirs=LIBRARY_DIRS, kind=None):
+    """``(path, environment)`` of the first library present in ``dirs`` (Linux only) that the running interpreter
+    can load, else None.  ``kind``: the :func:`elf_kind` a library must have (default: the interpreter's own), so
+    a 32-bit or other-architecture copy (Fedora's ``/usr/lib``, a multi-arch folder) is passed over instead of
+    making the loader print a warning in every process.  File reads only, no subprocess: every ``inbetween``
+    command pays it at start."""
     if not sys.platform.startswith("linux"):
+        return None
+    kind = elf_kind(sys.executable) if kind is None else kind
+    if kind is None:
         return None
     for name, env in libraries:
         for d in dirs:
             path = os.path.join(d, name)
-            if os.path.isfile(path):
+            if os.path.isfile(path) and elf_kind(path) == kind:
                 return path, dict(env)
     return None
 

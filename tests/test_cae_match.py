@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from inbetween_jax.data import load_motions
-from inbetween_jax.models.cae.bank import (MARGIN, MatchBank, _played_at, gate_distance, match_gap, match_weight,
-                                           speed_beside)
+from inbetween_jax.models.cae.bank import (MARGIN, MatchBank, _played_at, gate_distance, match_candidates, match_gap,
+                                           match_weight, speed_beside)
 from inbetween_jax.models.cae.features import body_frame_features, mirror_rows
 from inbetween_jax.models.scvae.bank import TransitionBank
 from inbetween_jax.train.run import RunError
@@ -102,6 +102,15 @@ def test_a_gap_cut_from_a_bank_clip_gets_that_clip_back(shipped, motions):
     other, d_other = match_gap(two, xm, ref, yaw, a, b, k=1, exclude=np.array([True, False]))
     assert d_own < 1e-6 < d_other and np.abs(other - x[:, a:b]).max() > 2e-3
     assert match_gap(two, xm, ref, yaw, a, b, k=1, exclude=np.array([True, True])) == (None, float("inf"))
+    # the k candidates, nearest first; the matched fill is their mean, and an excluded clip's windows never
+    # enter it, even when k asks for more windows than the other clips hold
+    fills, d = match_candidates(two, xm, ref, yaw, a, b, k=4)
+    assert fills.shape == (4, x.shape[0], b - a) and np.all(np.diff(d) >= 0) and d[0] < 1e-6
+    np.testing.assert_allclose(match_gap(two, xm, ref, yaw, a, b, k=4)[0], fills.mean(0), atol=1e-6)
+    where = two.index(b - a)[3]                                       # (N, 2): clip, start of every window
+    n_other = int(np.sum(where[:, 0] == 1))
+    fills, d = match_candidates(two, xm, ref, yaw, a, b, k=n_other + 5, exclude=np.array([True, False]))
+    assert len(fills) == n_other and np.isfinite(d).all() and d[0] == d_other
 
 
 def test_mirror_copy_matches_the_mirrored_motion(shipped, motions):

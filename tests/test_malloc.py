@@ -25,13 +25,35 @@ def test_preload_env_leaves_the_process_alone(environ, found):
     assert malloc.preload_env(environ, found=found) is None
 
 
+def _elf(path, kind_of=sys.executable, flip_class=False):
+    """A file with the header of ``kind_of`` (the running interpreter: a library it could load), or with its
+    ELF class flipped (a 32-bit copy on a 64-bit machine, or the reverse)."""
+    head = bytearray(open(kind_of, "rb").read(64))
+    if flip_class:
+        head[4] = 3 - head[4]
+    path.write_bytes(bytes(head))
+
+
 def test_find_looks_for_the_libraries_in_the_given_folders(tmp_path):
     assert malloc.find(dirs=(str(tmp_path),)) is None
-    (tmp_path / "libjemalloc.so.2").write_bytes(b"")
+    _elf(tmp_path / "libjemalloc.so.2")
     path, env = malloc.find(dirs=(str(tmp_path),))
     assert path == str(tmp_path / "libjemalloc.so.2") and env["MALLOC_CONF"].startswith("dirty_decay_ms:-1")
-    (tmp_path / "libtcmalloc_minimal.so.4").write_bytes(b"")
+    _elf(tmp_path / "libtcmalloc_minimal.so.4")
     assert malloc.find(dirs=(str(tmp_path),)) == (str(tmp_path / "libtcmalloc_minimal.so.4"), {})   # tcmalloc first
+
+
+def test_find_passes_over_a_library_the_interpreter_cannot_load(tmp_path):
+    other, own = tmp_path / "lib32", tmp_path / "lib64"
+    other.mkdir()
+    own.mkdir()
+    _elf(other / "libtcmalloc_minimal.so.4", flip_class=True)          # another ELF class: skipped
+    (other / "libjemalloc.so.2").write_bytes(b"not an ELF file")        # not ELF: skipped
+    assert malloc.find(dirs=(str(other),)) is None
+    _elf(own / "libjemalloc.so.2")
+    assert malloc.find(dirs=(str(other), str(own)))[0] == str(own / "libjemalloc.so.2")
+    kind = malloc.elf_kind(sys.executable)
+    assert kind is not None and malloc.elf_kind(str(other / "libtcmalloc_minimal.so.4"))[0] == 3 - kind[0]
 
 
 def _run(code: str, **env):

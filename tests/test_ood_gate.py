@@ -9,7 +9,7 @@ import pytest
 from inbetween_jax.data.activities import activity_group, trial_of
 from inbetween_jax.evaluation.worst_case import summarise, worst_case_rows
 from inbetween_jax.models.ood import (BLEND_WEIGHTS, ContextBank, Gate, build_bank, calibrate_gate, gated_ratio,
-                                      load_gate, save_gate)
+                                      held_out_ratios, load_gate, save_gate)
 
 SHARED = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data")
 ASSETS = os.path.join(os.path.dirname(__file__), "..", "inbetween_jax", "assets", "cmu30")
@@ -72,6 +72,25 @@ def test_calibration_is_not_fooled_by_rounding_in_a_gated_groups_ratio():
     gate, summary = calibrate_gate(scores, at, groups=groups)
     assert summary["meets_limits"] and summary["mean"] < 0.85
     assert gate.weight(0.2) == 1.0 and gate.weight(0.95) == 0.0
+
+
+def test_held_out_ratios_score_each_unit_with_thresholds_chosen_without_it():
+    """Two units whose windows win below their own score threshold: each unit, scored with the gate chosen on the
+    other alone, gets that gate's ratios (recomputed here window by window), not the pooled gate's."""
+    rng = np.random.default_rng(3)
+    scores = rng.uniform(0.0, 1.0, 200)
+    units = np.repeat(["a", "b"], 100)
+    edge = np.where(units == "a", 0.3, 0.7)               # unit a's learned fill loses above 0.3, b's above 0.7
+    learned = np.where(scores < edge, 0.6, 1.4)
+    at = np.stack([1 + w * (learned - 1) for w in BLEND_WEIGHTS], 1)
+    groups = ["g"] * 200
+    held = held_out_ratios(scores, at, groups, units)
+    for u, other in (("a", "b"), ("b", "a")):
+        gate = calibrate_gate(scores[units == other], at[units == other], groups=groups[:100])[0]
+        expect = gated_ratio(at[units == u], gate.weight(scores[units == u]))
+        np.testing.assert_allclose(held[units == u], expect)
+    pooled = gated_ratio(at, calibrate_gate(scores, at, groups=groups)[0].weight(scores))
+    assert held[units == "a"].mean() > pooled[units == "a"].mean()   # b's looser gate lets a's losers through
 
 
 def test_worst_case_summary_against_numpy_and_groups():

@@ -23,7 +23,8 @@ import os
 
 import numpy as np
 
-__all__ = ["ContextBank", "TravelScore", "SpeedScore", "Gate", "build_bank", "calibrate_gate", "gated_ratio",
+__all__ = ["ContextBank", "TravelScore", "SpeedScore", "Gate", "build_bank", "calibrate_gate", "held_out_ratios",
+           "gated_ratio",
            "BLEND_WEIGHTS", "OOD_FILE", "gate_note", "save_gate", "load_gate", "gated_records", "calibrate_run",
            "CALIBRATION_FILE", "run_gate", "calibration_worst_case", "load_gate_array"]
 
@@ -182,6 +183,20 @@ def calibrate_gate(scores, ratios_at, p90_max: float = 1.05, worst_max: float = 
                                   "worst_group_mean": group_worst,
                                   "meets_limits": bool(ok), "windows": int(len(s))}), key
     return best
+
+
+def held_out_ratios(scores, ratios_at, groups, units) -> np.ndarray:
+    """(B,) each window's gated ratio with the thresholds :func:`calibrate_gate` chooses on the windows of every
+    other unit (e.g. subject; ``units`` (B,) a label per window): how much the choice depends on the unit scored."""
+    s, units = np.asarray(scores, np.float64), np.asarray(units)
+    ratios_at, groups = list(ratios_at), list(groups)
+    held = np.zeros(len(s))
+    for u in sorted(set(units.tolist())):
+        out = units == u
+        gate = calibrate_gate(s[~out], [x for x, o in zip(ratios_at, out) if not o],
+                              groups=[x for x, o in zip(groups, out) if not o])[0]
+        held[out] = gated_ratio([x for x, o in zip(ratios_at, out) if o], gate.weight(s[out]))
+    return held
 
 
 def gate_note(score: float, weight: float, base: str) -> str:

@@ -31,8 +31,8 @@ import numpy as np
 
 from inbetween_jax.errors import UserError
 
-__all__ = ["BANK_FILE", "SWITCHES", "MatchBank", "match_enabled", "match_gap", "departure", "match_weight",
-           "speed_beside", "gate_distance"]
+__all__ = ["BANK_FILE", "SWITCHES", "MatchBank", "match_enabled", "match_candidates", "match_gap", "departure",
+           "match_weight", "speed_beside", "gate_distance"]
 
 BANK_FILE = "bank.npz"
 SWITCHES = ("model.match_k", "model.match_lo", "model.match_hi", "model.match_disp",
@@ -137,20 +137,22 @@ def _played_at(feats, ref, yaw, tempo: float):
     return (f, np.stack([np.interp(t, src, ref[:, 0]), np.interp(t, src, ref[:, 1])], 1), np.interp(t, src, yaw))
 
 
-def match_gap(bank: MatchBank, x_masked, ref, yaw, a: int, b: int, k: int, disp_weight: float = 1.0, exclude=None):
-    """The matched fill of gap ``[a, b)`` of one normalised clip image ``x_masked`` (D, T) whose root track is
-    ``ref`` (T, 2) / ``yaw`` (T,) (known frames only are read).  Returns ``(fill (D, b - a), distance)``, or
-    ``(None, inf)`` when the gap lacks :data:`MARGIN` known frames on a side or no training window is that long.
-    exclude: optional (num clips,) bool, clips never matched (e.g. the query's own subject, to score the bank's
-    subjects leaving each out)."""
+def match_candidates(bank: MatchBank, x_masked, ref, yaw, a: int, b: int, k: int, disp_weight: float = 1.0,
+                     exclude=None):
+    """The ``k`` nearest training windows of gap ``[a, b)`` of one normalised clip image ``x_masked`` (D, T) whose
+    root track is ``ref`` (T, 2) / ``yaw`` (T,) (known frames only are read), each offset-blended onto the known
+    frames.  Returns ``(fills (k', D, b - a), distances (k',))``, nearest first, or ``(None, None)`` when the gap
+    lacks :data:`MARGIN` known frames on a side or no training window is that long.  exclude: optional (num
+    clips,) bool, clips never matched (e.g. the query's own subject, to score the bank's subjects leaving each
+    out)."""
     from inbetween_jax.models.cae.gate import gap_context
     x = np.asarray(x_masked, np.float32)
     g = b - a
     if a < MARGIN or b + MARGIN > x.shape[1]:
-        return None, float("inf")
+        return None, None
     idx = bank.index(g)
     if idx is None:
-        return None, float("inf")
+        return None, None
     ctx, sq, disp, where = idx
     q = gap_context(x[None], a, b)[0].astype(np.float64)
     qd = _displacement(np.asarray(ref, np.float64), np.asarray(yaw, np.float64), np.array([a]), np.array([b]))[0]
@@ -158,9 +160,10 @@ def match_gap(bank: MatchBank, x_masked, ref, yaw, a: int, b: int, k: int, disp_
          + disp_weight * np.sum((disp - qd) ** 2, 1))
     if exclude is not None:
         d = np.where(np.asarray(exclude, bool)[where[:, 0]], np.inf, d)
-        if not np.isfinite(d).any():
-            return None, float("inf")
     best = np.argsort(d)[:max(int(k), 1)]
+    best = best[np.isfinite(d[best])]
+    if len(best) == 0:
+        return None, None
     w = (np.arange(1, g + 1) / (g + 1))[None]
     fills = []
     for i in best:
@@ -168,7 +171,16 @@ def match_gap(bank: MatchBank, x_masked, ref, yaw, a: int, b: int, k: int, disp_
         c = bank.clips[clip][:, s - 1:s + g + 1]
         d0, d1 = x[:, a - 1] - c[:, 0], x[:, b] - c[:, -1]
         fills.append(c[:, 1:-1] + (1 - w) * d0[:, None] + w * d1[:, None])
-    return np.mean(fills, 0).astype(np.float32), float(d[best[0]])
+    return np.stack(fills), d[best]
+
+
+def match_gap(bank: MatchBank, x_masked, ref, yaw, a: int, b: int, k: int, disp_weight: float = 1.0, exclude=None):
+    """The matched fill of gap ``[a, b)``: the mean of :func:`match_candidates`' ``k`` windows.  Returns ``(fill
+    (D, b - a), distance of the nearest)``, or ``(None, inf)`` where there is no candidate."""
+    fills, d = match_candidates(bank, x_masked, ref, yaw, a, b, k, disp_weight, exclude)
+    if fills is None:
+        return None, float("inf")
+    return np.mean(fills, 0).astype(np.float32), float(d[0])
 
 
 def departure(fill, matched, known_pos, a: int, b: int, normalizer, num_joints: int) -> float:
