@@ -1,4 +1,4 @@
-"""Two tries at the CAE's motion matching inside a file, judged on the validation subjects plus the fit subjects'
+"""Tries at the CAE's motion matching inside a file, judged on the validation subjects plus the fit subjects'
 gaps (each matched without its own subject's files), as ``experiments/cae_motion_match.py --fit-subjects`` does.
 
 1. **The file's own motion as a bank** ("self-match"): each gap matched against the same file's known frames
@@ -9,6 +9,9 @@ gaps (each matched without its own subject's files), as ``experiments/cae_motion
    from their mean; ``rel``: that over the body's travel beside the gap.  Each score gets its thresholds from
    :func:`~inbetween_jax.models.ood.calibrate_gate` by the project's rule, and each subject is also scored with
    thresholds chosen without it.
+3. **Both banks**: the shipped gate on the training bank as it is, and where it stays shut the file's own match,
+   blended in by a second gate on the self-match's distance (relative to the speed beside the gap, as the shipped
+   gate's), its thresholds chosen by the same rule.
 
     python experiments/cae_match_probes.py inbetween_jax/assets/weights/cae      # about 10 min
 """
@@ -23,7 +26,7 @@ from inbetween_jax.data import load_motions
 from inbetween_jax.data.activities import activity_group
 from inbetween_jax.geometry import forward_kinematics
 from inbetween_jax.models.cae.bank import (MARGIN, MatchBank, departure, gate_distance, match_candidates,
-                                           speed_beside)
+                                           match_weight, speed_beside)
 from inbetween_jax.models.cae.features import body_frame_features, body_positions, to_global
 from inbetween_jax.models.cae.infer import fill, load
 from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
@@ -90,10 +93,13 @@ for m, exclude, set_name in motions:
             if segments:                                                   # the file's own known frames
                 own = MatchBank([xm[:, s:e] for s, e in segments],
                                 [(feats.ref[s:e], feats.yaw[s:e]) for s, e in segments])
-                own_fills, _ = match_candidates(own, xm, feats.ref, feats.yaw, lo, hi, 1, a.disp)
+                own_fills, own_d = match_candidates(own, xm, feats.ref, feats.yaw, lo, hi, 1, a.disp)
                 if own_fills is not None:
                     own_dep = departure(y[:, lo:hi], own_fills[0], feats.global_pos, lo, hi, model.normalizer, j)
-                    rec["self"] = (ratios(own_fills[0])[-1], own_dep <= a.departure)
+                    own_at = ratios(own_fills[0])
+                    rec["self"] = (own_at[-1], own_dep <= a.departure)
+                    rec["self_at"] = own_at if own_dep <= a.departure else [1.0] * len(BLEND_WEIGHTS)
+                    rec["self_d"] = gate_distance(float(own_d[0]), rec["beside"], mc.match_speed_scale)
             recs.append(rec)
 
 print(f"1. self-match: error with the file's own nearest window whole / the fill's ({len(recs)} gaps); the training "
@@ -129,3 +135,24 @@ for name, sc in scores.items():
     held = held_out_ratios(sc, ratios_at, groups, subjects)
     print(f"| {name} | {summary['meets_limits']} | {r.mean():.4f} / {r.max():.3f} | {r[val].mean():.4f} | "
           f"{r[~val].mean():.4f} | {held.mean():.4f} / {held.max():.3f} | {held[val].mean():.4f} |")
+
+# 3. the file's own match where the shipped bank gate stays shut, with its own gate on its own distance
+bank_w = np.array([match_weight(d, mc.match_lo, mc.match_hi) for d in shipped])
+bank_r = gated_ratio(ratios_at, bank_w)
+shut = bank_w <= 0.0
+combined = [r.get("self_at", [1.0] * len(BLEND_WEIGHTS)) if sh else [rb] * len(BLEND_WEIGHTS)
+            for r, sh, rb in zip(recs, shut, bank_r)]
+self_d = np.array([r.get("self_d", np.inf) for r in recs])
+self_d = np.where(np.isfinite(self_d), self_d, np.nanmax(np.where(np.isfinite(self_d), self_d, np.nan)) * 10)
+gate, summary = calibrate_gate(self_d, combined, groups=groups)
+r = gated_ratio(combined, gate.weight(self_d))
+held = held_out_ratios(self_d, combined, groups, subjects)
+print(f"\n3. the file's own match where the shipped bank gate is shut ({shut.sum()} of {len(recs)} gaps); gate on "
+      f"the self-match distance: lo {gate.lo:.5f} hi {gate.hi:.5f}, limits met {summary['meets_limits']}")
+print("| fill | all: mean / max | validation mean | fit mean | each subject left out: mean / max | worst group |")
+print("|---|---|---|---|---|---|")
+for name, rr, hh in (("shipped: bank only", bank_r, None), ("bank, then the file's own match", r, held)):
+    worst = max((rr[np.array([g_ == x for g_ in groups])].mean(), x) for x in set(groups))
+    loso = "-" if hh is None else f"{hh.mean():.4f} / {hh.max():.3f}"
+    print(f"| {name} | {rr.mean():.4f} / {rr.max():.3f} | {rr[val].mean():.4f} | {rr[~val].mean():.4f} | {loso} | "
+          f"{worst[1]} {worst[0]:.3f} |")
