@@ -12,6 +12,7 @@ import numpy as np
 
 from inbetween_jax.data import load_motions
 from inbetween_jax.data.activities import activity_group
+from inbetween_jax.data.windows import keyframe_pairs
 from inbetween_jax.geometry import forward_kinematics
 from inbetween_jax.models.scvae.gate import slerp_base
 from inbetween_jax.models.scvae.timing import body_parts, retimed
@@ -26,14 +27,8 @@ res = collections.defaultdict(lambda: collections.defaultdict(list))
 for split in ("val-subjects", "fit-subjects"):
     for m in load_motions("cmu", split):
         group, parts = activity_group(str(m.source)), body_parts(m.skeleton)
-        gp = forward_kinematics(m.local_quats, m.local_pos, m.skeleton.parents)[1]
-        for n in (10, 30, 50):
-            k0 = np.arange(0, m.num_frames - n - 2, 40)
-            if len(k0) == 0:
-                continue
-            k1 = k0 + n + 1
+        for n, k0, k1, truth in keyframe_pairs(m):                                    # truth (B, n, J, 3)
             sq, sr = slerp_base(m.local_quats[k0], m.root_pos[k0], m.local_quats[k1], m.root_pos[k1], n)
-            truth = np.stack([gp[i + 1:i + n + 1] for i in k0])                          # (B, n, J, 3)
 
             def errors(q, r):                                                            # (S, B) mean joint error
                 lp = np.broadcast_to(m.local_pos[0], q.shape[:-1] + (3,)).copy()

@@ -17,6 +17,7 @@ import numpy as np
 
 from inbetween_jax.data import load_motions
 from inbetween_jax.data.activities import activity_group
+from inbetween_jax.data.windows import keyframe_pairs
 from inbetween_jax.geometry import forward_kinematics
 from inbetween_jax.geometry.quaternion import quat_align, quat_slerp
 
@@ -27,13 +28,7 @@ res = collections.defaultdict(list)
 for split in ("val-subjects", "fit-subjects"):
     for m in load_motions("cmu", split):
         group = activity_group(str(m.source))
-        gp = forward_kinematics(m.local_quats, m.local_pos, m.skeleton.parents)[1]
-        for n in (10, 30, 50):
-            k0 = np.arange(0, m.num_frames - n - 2, 40)
-            if len(k0) == 0:
-                continue
-            k1 = k0 + n + 1
-            truth = np.stack([gp[i + 1:i + n + 1] for i in k0])                      # (B, n, J, 3)
+        for n, k0, k1, truth in keyframe_pairs(m):                                # truth (B, n, J, 3)
             q0 = m.local_quats[k0].astype(np.float64)
             q1 = quat_align(m.local_quats[k1].astype(np.float64), q0)
             r0, r1 = m.root_pos[k0].astype(np.float64), m.root_pos[k1].astype(np.float64)

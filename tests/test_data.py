@@ -83,6 +83,21 @@ def test_embedded_default_is_real_and_split():
     assert np.abs(np.diff(train.root_pos, axis=1)).max() > 1.0
 
 
+def test_keyframe_pairs_give_the_frames_between_two_keyframes():
+    """On a real embedded clip: each pair's truth is the clip's own FK positions strictly between its keyframes,
+    every 40 frames; a gap longer than the clip is skipped."""
+    from inbetween_jax.data.windows import keyframe_pairs
+    from inbetween_jax.geometry import forward_kinematics
+    m = read_bvh(os.path.join(EMBEDDED_DIR, sorted(f for f in os.listdir(EMBEDDED_DIR) if f.endswith(".bvh"))[0]))
+    pos = forward_kinematics(m.local_quats, m.local_pos, m.skeleton.parents)[1]
+    pairs = list(keyframe_pairs(m, lengths=(10, 30, m.num_frames)))
+    assert [n for n, *_ in pairs] == [10, 30]
+    for n, k0, k1, truth in pairs:
+        assert k0[0] == 0 and np.all(np.diff(k0) == 40) and np.all(k1 - k0 == n + 1) and k1[-1] < m.num_frames
+        assert truth.shape == (len(k0), n, m.skeleton.num_joints, 3)
+        np.testing.assert_array_equal(truth[-1], pos[k0[-1] + 1:k1[-1]])
+
+
 def test_cache_roundtrip_and_reversal(tmp_path, monkeypatch):
     monkeypatch.setenv("INBETWEEN_JAX_CACHE", str(tmp_path))
     a = load_dataset("embedded", "test")

@@ -128,6 +128,17 @@ def window_starts(num_frames: int, window: int, offset: int) -> list:
     return list(range(0, max(num_frames - window, 0), offset))
 
 
+def keyframe_pairs(motion: Motion, lengths=(10, 30, 50), stride: int = 40):
+    """Every ``stride`` frames of ``motion``, a keyframe pair around each gap of ``n`` frames in ``lengths``.
+    Yields ``(n, k0 (B,), k1 (B,), truth (B, n, J, 3))``: the start and end keyframes (``k1 = k0 + n + 1``) and the
+    global joint positions of the frames between them; lengths the motion is too short for are skipped."""
+    positions = forward_kinematics(motion.local_quats, motion.local_pos, motion.skeleton.parents)[1]
+    for n in lengths:
+        k0 = np.arange(0, motion.num_frames - n - 2, stride)
+        if len(k0):
+            yield n, k0, k0 + n + 1, np.stack([positions[i + 1:i + n + 1] for i in k0])
+
+
 def canonicalize(local_quats, root_pos, skeleton: Skeleton, n_past: int, forward_axis=(0.0, 1.0, 0.0),
                  target_dir=(1.0, 0.0, 0.0)):
     """Centre windows in XZ on their mean root position and turn them to face ``target_dir`` at frame

@@ -24,9 +24,8 @@ import os
 import numpy as np
 
 __all__ = ["ContextBank", "TravelScore", "SpeedScore", "Gate", "build_bank", "calibrate_gate", "held_out_ratios",
-           "gated_ratio",
-           "BLEND_WEIGHTS", "OOD_FILE", "gate_note", "save_gate", "load_gate", "gated_records", "calibrate_run",
-           "CALIBRATION_FILE", "run_gate", "calibration_worst_case", "load_gate_array"]
+           "gated_ratio", "BLEND_WEIGHTS", "OOD_FILE", "gate_note", "save_gate", "load_gate", "gated_records",
+           "calibrate_run", "CALIBRATION_FILE", "run_gate", "calibration_worst_case", "load_gate_array"]
 
 OOD_FILE = "ood.npz"                              # the bank and gate in a run folder / shipped weights folder
 BLEND_WEIGHTS = (0.0, 0.25, 0.5, 0.75, 1.0)       # weights of the learned fill at which calibration scores windows
