@@ -113,21 +113,16 @@ def step_call(model: str):
     """One train step of ``model`` as a callable (cae: ``improved``; interaction: ``improved`` with 3 members;
     scvae-cpu / scvae-paper: the speed section's S-CVAE step, batch 32, 50 frames) on one real batch; each call
     advances the state and waits for the step."""
-    import dataclasses
     import jax
     from inbetween_jax.train.config import apply_overrides
     from inbetween_jax.train.loop import make_step_fn, strongly_typed
     if model.startswith("scvae"):
         from inbetween_jax.data import load_dataset
-        from inbetween_jax.models.scvae import train as T
-        from inbetween_jax.models.scvae.config import get_config
+        from inbetween_jax.evaluation.speed import scvae_step_setup
         from inbetween_jax.models.scvae.features import TrainData, compute_stats
         win = load_dataset(None, "benchmark")
-        data, cfg = TrainData.from_windows(win), get_config(model.split("-")[1])
-        cfg = dataclasses.replace(cfg, data=dataclasses.replace(cfg.data, trans_max=50))
-        rng = np.random.default_rng(0)
-        batch = T.make_batch(data, rng.integers(0, len(data), 32), rng.integers(0, data.q.shape[1] - 51, 32), 51, 51)
-        init, step_fn = T.make_init_fn(cfg, compute_stats(win), data.q.shape[2]), T.make_train_step(cfg, data.parents, 51)
+        _, batch, step_fn, init, _ = scvae_step_setup(model.split("-")[1], TrainData.from_windows(win),
+                                                      compute_stats(win))
     else:
         if model == "interaction":
             from inbetween_jax.models.interaction import train as T

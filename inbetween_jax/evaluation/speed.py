@@ -45,7 +45,23 @@ from inbetween_jax.evaluation.speed_timing import (COMPILE_TIMEOUT_S, TORCH_BACK
                                                    first_call_s as _first_call_s, side_by_side as _side_by_side)
 from inbetween_jax.malloc import MARK_ENV as MALLOC_MARK
 
-__all__ = ["run", "markdown", "scvae_rows", "cae_rows", "cae_train_rows", "interaction_rows", "TORCH_BACKENDS"]
+__all__ = ["run", "markdown", "scvae_rows", "scvae_step_setup", "cae_rows", "cae_train_rows", "interaction_rows", "TORCH_BACKENDS"]
+
+
+def scvae_step_setup(variant, data, stats, batch=32, n_trans=50):
+    """The speed section's S-CVAE training step of one width: ``(cfg, numpy batch, step_fn, init_fn, length)`` on
+    ``batch`` real windows of ``data`` (drawn with seed 0) with ``n_trans``-frame transitions."""
+    from inbetween_jax.models.scvae import train as scvae_train
+    from inbetween_jax.models.scvae.config import get_config
+    length = n_trans + 1
+    cfg = get_config(variant)
+    cfg = dataclasses.replace(cfg, data=dataclasses.replace(cfg.data, trans_max=n_trans))
+    rng = np.random.default_rng(0)
+    idx = rng.integers(0, len(data), batch)
+    starts = rng.integers(0, data.q.shape[1] - length, batch)
+    np_batch = scvae_train.make_batch(data, idx, starts, length, length)
+    return (cfg, np_batch, scvae_train.make_train_step(cfg, data.parents, length),
+            scvae_train.make_init_fn(cfg, stats, data.q.shape[2]), length)
 
 
 def _train_step_row(variant, win, data, stats, reps, torch_ref=None, batch=32, n_trans=50):
@@ -53,21 +69,11 @@ def _train_step_row(variant, win, data, stats, reps, torch_ref=None, batch=32, n
     import jax
     import jax.numpy as jnp
 
-    from inbetween_jax.models.scvae import train as scvae_train
-    from inbetween_jax.models.scvae.config import get_config
     from inbetween_jax.profiling import matmul_flops
     from inbetween_jax.train.loop import make_step_fn, strongly_typed
 
-    length = n_trans + 1
-    cfg = get_config(variant)
-    cfg = dataclasses.replace(cfg, data=dataclasses.replace(cfg.data, trans_max=n_trans))
+    cfg, np_batch, step_fn, init_fn, length = scvae_step_setup(variant, data, stats, batch, n_trans)
     j = data.q.shape[2]
-    rng = np.random.default_rng(0)
-    idx = rng.integers(0, len(data), batch)
-    starts = rng.integers(0, data.q.shape[1] - length, batch)
-    np_batch = scvae_train.make_batch(data, idx, starts, length, length)
-    step_fn = scvae_train.make_train_step(cfg, data.parents, length)
-    init_fn = scvae_train.make_init_fn(cfg, stats, j)
     jit_step = make_step_fn(step_fn, jax.random.key(1))
     state = jax.tree.map(strongly_typed, init_fn(jax.random.key(0)))
     dev_batch = jax.tree.map(jnp.asarray, np_batch)
