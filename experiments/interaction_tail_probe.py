@@ -43,7 +43,7 @@ def extra_features(ctx, keypose, L) -> dict:
 
 def feature_probe(fit, val, d, lengths) -> None:
     from inbetween_jax.evaluation import interaction as proto
-    from inbetween_jax.models.interaction.gate import base_error_features, interpolation_base
+    from inbetween_jax.models.interaction.gate import base_error_features, fit_base_error, interpolation_base
     from inbetween_jax.models.interaction.samples import window_errors_cm
     data = {}
     for name, pairs, n in (("fit", fit, 400), ("val", val, 10_000)):
@@ -52,20 +52,21 @@ def feature_probe(fit, val, d, lengths) -> None:
             ctx = b["x"][:, :, :proto.N_INPUT]
             F.append(base_error_features(ctx, b["keypose"], L))
             X.append(extra_features(ctx, b["keypose"], L))
-            E.append(np.log(np.maximum(window_errors_cm(interpolation_base(ctx, b["keypose"], L), b), 1e-6)))
+            E.append(window_errors_cm(interpolation_base(ctx, b["keypose"], L), b))
         extra = {k: np.concatenate([x[k] for x in X]) for k in X[0]}
-        data[name] = (np.concatenate(F), extra, np.concatenate(E))
+        data[name] = (np.concatenate(F), extra, np.concatenate(E))                 # errors in cm
     sets = [("shipped: 1, log gap, log speed, log keypose distance", [])] + [(f"+ {k}", [k]) for k in data["fit"][1]]
     sets.append(("+ all of them", list(data["fit"][1])))
     print(f"1. interpolation's error from the context: {len(data['fit'][2])} fit / {len(data['val'][2])} val windows")
     print("| features | fit R^2 / sd | val R^2 / sd |\n|---|---|---|")
     for label, keys in sets:
         A = {s: np.c_[data[s][0], *[data[s][1][k] for k in keys]] for s in data}
-        coef = np.linalg.lstsq(A["fit"], data["fit"][2], rcond=None)[0]
+        coef = fit_base_error(A["fit"], data["fit"][2])          # the shipped fit, on more features
         cells = []
         for s in ("fit", "val"):
-            r = data[s][2] - A[s] @ coef
-            cells.append(f"{1 - r.var() / data[s][2].var():.3f} / {r.std():.3f}")
+            log_err = np.log(np.maximum(data[s][2], 1e-6))
+            r = log_err - A[s] @ coef
+            cells.append(f"{1 - r.var() / log_err.var():.3f} / {r.std():.3f}")
         print(f"| {label} | " + " | ".join(cells) + " |")
 
 
