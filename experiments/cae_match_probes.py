@@ -3,7 +3,9 @@ gaps (each matched without its own subject's files), as ``experiments/cae_motion
 
 1. **The file's own motion as a bank** ("self-match"): each gap matched against the same file's known frames
    outside it (the gap and nothing else left out), for cyclic motion the training bank does not hold (jumps in
-   place, runs).  Printed per activity group: the error with the self-match whole over the fill's.
+   place, runs); with ``--self-tempos`` those frames are also played faster and slower, so a cycle whose period
+   does not fit the gap can match in phase.  Printed per activity group: the error with the self-match whole over
+   the fill's.
 2. **The spread of the k matched windows as the gate's score**: where the ``k`` nearest training windows disagree,
    a match may be a guess.  ``spread``: the mean joint distance (body frame, cm) of the k offset-blended windows
    from their mean; ``rel``: that over the body's travel beside the gap.  Each score gets its thresholds from
@@ -38,12 +40,16 @@ p.add_argument("run_dir")
 p.add_argument("--k", type=int, default=8)
 p.add_argument("--disp", type=float, default=0.05)
 p.add_argument("--departure", type=float, default=0.5)
+p.add_argument("--self-tempos", default="1.0",
+               help="comma-separated tempos the file's own frames are also played at when self-matched (1.25 is "
+                    "faster): a cyclic motion whose period does not fit the gap can then match in phase")
 a = p.parse_args()
 run = load_run(a.run_dir)
 model = load(run)
 j, mc = model.num_joints, model.cfg.model
 bank = MatchBank.from_transition_bank(scvae_bank(run, "cmu", "fit-subjects"), model.skeleton, model.normalizer, j)
 bound = float(mc.root_bound) * 100
+self_tempos = tuple(float(t) for t in a.self_tempos.split(","))
 
 
 def subject(name) -> str:
@@ -89,10 +95,10 @@ for m, exclude, set_name in motions:
                    "spread": float(np.linalg.norm(body - body.mean(0), axis=-1).mean()), "travel": float(travel),
                    "ratios_at": ratios(matched) if dep <= a.departure else [1.0] * len(BLEND_WEIGHTS)}
             rec["bank"] = rec["ratios_at"][-1] if dep <= a.departure else ratios(matched)[-1]      # whole
-            segments = [(s, e) for s, e in ((0, lo), (hi, m.num_frames)) if e - s >= g + 2 * MARGIN + 1]
-            if segments:                                                   # the file's own known frames
-                own = MatchBank([xm[:, s:e] for s, e in segments],
-                                [(feats.ref[s:e], feats.yaw[s:e]) for s, e in segments])
+            segments = [(s, e) for s, e in ((0, lo), (hi, m.num_frames)) if e - s >= 2 * MARGIN + 2]
+            own = MatchBank.from_features([(feats.features[s:e], feats.ref[s:e], feats.yaw[s:e], "own")
+                                           for s, e in segments], model.normalizer, self_tempos)
+            if own.clips:                                                  # the file's own known frames
                 own_fills, own_d = match_candidates(own, xm, feats.ref, feats.yaw, lo, hi, 1, a.disp)
                 if own_fills is not None:
                     own_dep = departure(y[:, lo:hi], own_fills[0], feats.global_pos, lo, hi, model.normalizer, j)

@@ -113,6 +113,31 @@ def test_a_gap_cut_from_a_bank_clip_gets_that_clip_back(shipped, motions):
     assert len(fills) == n_other and np.isfinite(d).all() and d[0] == d_other
 
 
+def test_a_bank_of_features_played_at_a_tempo_matches_that_tempo(shipped, motions):
+    """``MatchBank.from_features`` (a file's own frames as a bank): the same clips as the transition-bank route at
+    tempo 1, and a gap of the clip played slower finds the slowed copy, not the clip at its own pace."""
+    m = motions[0]
+    feats = body_frame_features(m)
+    item = (feats.features, feats.ref, feats.yaw, "own")
+    via_bank = MatchBank.from_transition_bank(TransitionBank.from_motions([m], m.skeleton.forward_axis()),
+                                              shipped.skeleton, shipped.normalizer, shipped.num_joints)
+    own = MatchBank.from_features([item], shipped.normalizer)
+    np.testing.assert_allclose(own.clips[0], via_bank.clips[0], atol=1e-4)
+    f, ref, yaw = _played_at(feats.features.astype(np.float64), feats.ref, feats.yaw, 0.8)
+    x = shipped.normalizer(f.astype(np.float32)).T.astype(np.float32)
+    a, b = MARGIN + 30, MARGIN + 60
+    mask = np.ones_like(x)
+    mask[:, a:b] = 0.0
+    both = MatchBank.from_features([item], shipped.normalizer, tempos=(1.0, 0.8))
+    assert len(both.clips) == 2 and both.clips[1].shape[1] == len(f)
+    fill, dist = match_gap(both, x * mask, ref, yaw, a, b, k=1)
+    assert dist < 1e-6
+    np.testing.assert_allclose(fill, x[:, a:b], atol=2e-3)
+    assert match_gap(own, x * mask, ref, yaw, a, b, k=1)[1] > 1e-3
+    assert MatchBank.from_features([(feats.features[:2 * MARGIN], feats.ref[:2 * MARGIN],
+                                     feats.yaw[:2 * MARGIN], "short")], shipped.normalizer).clips == []
+
+
 def test_mirror_copy_matches_the_mirrored_motion(shipped, motions):
     m = motions[1]
     tb = TransitionBank.from_motions([m], m.skeleton.forward_axis())

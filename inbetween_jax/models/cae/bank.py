@@ -76,26 +76,38 @@ class MatchBank:
         if bank.num_joints != num_joints or tuple(bank.parents) != tuple(skeleton.parents):
             raise UserError(f"motion bank: {bank.num_joints} joints on another skeleton than the run's "
                             f"{num_joints}")
-        perm, sign = mirror_rows(skeleton) if mirror else (None, None)
-        clips, tracks, names = [], [], []
-        for ci, (s, e) in enumerate(zip(bank.clip_starts[:-1], bank.clip_starts[1:])):
+        items = []
+        for s, e, name in zip(bank.clip_starts[:-1], bank.clip_starts[1:], bank.names):
             lp = local_positions(bank.root_pos[s:e].astype(np.float64), bank.offsets)
             gp = forward_kinematics(bank.local_quats[s:e].astype(np.float64), lp, bank.parents)[1]
             yaw = np.unwrap(smoothed_facing_yaw(gp, skeleton))
-            feats = positions_to_features(gp, yaw).astype(np.float64)
+            items.append((positions_to_features(gp, yaw), gp[:, 0, [0, 2]], yaw, str(name)))
+        out = cls.from_features(items, normalizer, tempos, mirror_rows(skeleton) if mirror else None)
+        if not out.clips:
+            raise UserError("motion bank: no clip is long enough to match a gap in")
+        return out
+
+    @classmethod
+    def from_features(cls, items, normalizer, tempos=(1.0,), mirror=None) -> "MatchBank":
+        """A bank of clips already in the CAE's un-normalised features: ``items``: ``(features (T, D), floor path
+        (T, 2) in cm, unwrapped facing (T,), name)`` each; every clip also played at ``tempos`` and, with ``mirror``
+        (:func:`~inbetween_jax.models.cae.features.mirror_rows`' ``(perm, sign)``), mirrored.  Clips too short to
+        hold a gap's context are left out (the bank may be empty)."""
+        perm, sign = mirror if mirror is not None else (None, None)
+        clips, tracks, names = [], [], []
+        for feats, ref, yaw, name in items:
             for tempo in tempos:
-                f, ref, yw = _played_at(feats, gp[:, 0, [0, 2]].astype(np.float64), yaw, float(tempo))
+                f, rf, yw = _played_at(np.asarray(feats, np.float64), np.asarray(ref, np.float64),
+                                       np.asarray(yaw, np.float64), float(tempo))
                 if len(f) < 2 * MARGIN + 2:
                     continue
-                variants = [(f, ref, yw)]
-                if mirror:
-                    variants.append((sign[None] * f[:, perm], ref * np.array([-1.0, 1.0]), -yw))
+                variants = [(f, rf, yw)]
+                if mirror is not None:
+                    variants.append((sign[None] * f[:, perm], rf * np.array([-1.0, 1.0]), -yw))
                 for fv, rv, yv in variants:
                     clips.append(np.ascontiguousarray(normalizer(fv.astype(np.float32)).T.astype(np.float32)))
                     tracks.append((rv, yv))
-                    names.append(str(bank.names[ci]))
-        if not clips:
-            raise UserError("motion bank: no clip is long enough to match a gap in")
+                    names.append(name)
         return cls(clips, tracks, names)
 
     def index(self, length: int):
