@@ -49,4 +49,5 @@ def pair_windows():
     """Evaluation windows of the test split of those pairs: 20 context frames, a 30-frame gap and the keyframe
     (6 windows)."""
     from inbetween_jax.models.interaction import data as idata
-    return idata.eval_windows(idata.split_pairs(idata.load_pairs("embedded"), "test"), 20, 30, 10, max_windows=6)
+    from inbetween_jax.models.interaction import batches as ibatches
+    return ibatches.eval_windows(idata.split_pairs(idata.load_pairs("embedded"), "test"), 20, 30, 10, max_windows=6)

@@ -16,6 +16,7 @@ from inbetween_jax.data.datasets import EMBEDDED_DIR
 from inbetween_jax.geometry import dct, idct
 from inbetween_jax.geometry.heading import yaw_matrix
 from inbetween_jax.models.interaction import data as idata
+from inbetween_jax.models.interaction import batches as ibatches
 from inbetween_jax.models.interaction import features as ifeat
 from inbetween_jax.models.interaction import layers as inets
 from inbetween_jax.models.interaction import model as ia
@@ -104,7 +105,7 @@ def test_spaces_are_invertible(pairs):
 def test_keyframe_sampling_origin_and_forward(pairs, mirror):
     rng = np.random.default_rng(4)
     tr = idata.split_pairs(pairs, "train")
-    b = idata.sample_batch(tr, rng, 16, length=50, key_range=(25, 30), mirror=mirror)
+    b = ibatches.sample_batch(tr, rng, 16, length=50, key_range=(25, 30), mirror=mirror)
     kp = b["keypose"]                                                        # (B, 2, J, 9)
     np.testing.assert_allclose(kp[..., 0, [0, 2]], 0.0, atol=1e-5)          # keyframe root at the origin
     yaw = ifeat.facing_yaw(kp[..., 0, :].astype(np.float64), tr[0].forward_axis)
@@ -151,7 +152,7 @@ def test_constructed_pair_faces_partner(pairs):
 def test_rollout_stops_at_threshold(pairs):
     params = ia.init_params(jax.random.key(0), CFG, pairs[0].feats.shape[2])
     tr = idata.split_pairs(pairs, "train")
-    b = idata.sample_batch(tr, np.random.default_rng(5), 3, 50, (50, 70))
+    b = ibatches.sample_batch(tr, np.random.default_rng(5), 3, 50, (50, 70))
     w = b["x"][:, :, :20]
     fa = tr[0].forward_axis
     run = jax.jit(lambda thr: ia.rollout(params, w, b["keypose"], b["rel_R"], b["rel_t"], jax.random.key(1),
@@ -187,7 +188,7 @@ def test_plain_dict_params_match_the_nnx_modules(pairs):
     got = [np.asarray(v) for v in jax.tree.leaves(params["gen"])]
     assert len(got) == len(ref_leaves) and all(np.array_equal(a, b) for a, b in zip(got, ref_leaves))
     assert all(isinstance(v, dict) for v in params.values())
-    b = idata.sample_batch(idata.split_pairs(pairs, "train"), np.random.default_rng(6), 2, 50, (50, 70))
+    b = ibatches.sample_batch(idata.split_pairs(pairs, "train"), np.random.default_rng(6), 2, 50, (50, 70))
     fa = np.asarray(pairs[0].forward_axis, np.float32)
     out = ia.generator_step(params["gen"], b["x"][:, :, :20], b["keypose"], b["rel_R"], b["rel_t"],
                             jax.random.key(4), CFG, fa)

@@ -16,7 +16,8 @@ needs_pairs = pytest.mark.skipif(not os.path.isdir(PAIRS), reason="shared salsa 
 
 
 def _windows(source, split=None, length=30):
-    from inbetween_jax.models.interaction.data import eval_windows, load_pairs, split_pairs
+    from inbetween_jax.models.interaction.batches import eval_windows
+    from inbetween_jax.models.interaction.data import load_pairs, split_pairs
     pairs = load_pairs(source, 150.0)
     return eval_windows(split_pairs(pairs, split, (0.85, 0.05, 0.1)) if split else pairs, 20, length, 10, 0.01)
 
@@ -95,7 +96,8 @@ def test_shipped_gate_scores_an_unseen_activity_higher_than_the_training_takes()
     scorer, gate = load_gate(folder)
     assert json.load(open(os.path.join(folder, "run.json")))["config"]["model"]["ood_gate"]
     train = scorer.score(window_context(_windows(PAIRS, "fit")["x"][:, :, :20]))
-    from inbetween_jax.models.interaction.data import eval_windows, load_pairs
+    from inbetween_jax.models.interaction.batches import eval_windows
+    from inbetween_jax.models.interaction.data import load_pairs
     everyday = [p for p in load_pairs("embedded", 150.0) if p.name == "14_07+14_08"]
     unseen = scorer.score(window_context(eval_windows(everyday, 20, 30, 10, 0.01)["x"][:, :, :20]))
     assert len(unseen) > 20 and np.median(unseen) > 1.5 * np.median(train)

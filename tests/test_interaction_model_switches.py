@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from inbetween_jax.models.interaction import data as idata
+from inbetween_jax.models.interaction import batches as ibatches
 from inbetween_jax.models.interaction import model as ia
 from inbetween_jax.models.interaction.config import DEFAULT_PRESET, PRESETS, get_config
 from inbetween_jax.models.interaction.infer import Trained, infill_features
@@ -54,7 +55,7 @@ def test_default_batch_is_one_sample_batch_call(pair_train):
     """Switches off: the batch is exactly the paper's sampling (same random stream, same arrays)."""
     d = TINY.data
     got = training_batch(pair_train, np.random.default_rng(3), TINY)
-    ref = idata.sample_batch(pair_train, np.random.default_rng(3), TINY.train.batch_size,
+    ref = ibatches.sample_batch(pair_train, np.random.default_rng(3), TINY.train.batch_size,
                              d.n_input + d.ar_steps * d.n_pred, (d.key_min, d.key_max), d.mirror, d.pos_scale)
     assert set(got) == set(BATCH_KEYS)
     for k in BATCH_KEYS:

@@ -15,6 +15,7 @@ from inbetween_jax.evaluation import interaction as proto
 from inbetween_jax.geometry.kinematics import forward_kinematics
 from inbetween_jax.geometry.quaternion import quat_from_euler
 from inbetween_jax.models.interaction import data as idata
+from inbetween_jax.models.interaction import batches as ibatches
 
 PAIRS_DIR = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "cmu_pairs")
 needs_pairs = pytest.mark.skipif(not os.path.isdir(PAIRS_DIR), reason="../shared/data/cmu_pairs not available")
@@ -122,7 +123,7 @@ def test_dropped_joints_never_move():
 
 @needs_pairs
 def test_real_pair_baselines_on_test_windows(take12):
-    w = idata.eval_windows([take12], proto.N_INPUT, 30, 60, 0.01, max_windows=2)
+    w = ibatches.eval_windows([take12], proto.N_INPUT, 30, 60, 0.01, max_windows=2)
     key = jax.random.key(0)
     interp = proto.interpolation_method(w, 6, 1, key)
     hold = proto.hold_method(w, 6, 1, key)
@@ -149,7 +150,7 @@ def test_windows_l2p_scores_ground_truth_zero_and_interpolation_as_pair_l2p(take
     """The selection / all-windows score: ground truth scores 0; interpolation the direct pair L2P of its frames."""
     from inbetween_jax.baselines.two_character import two_character_interpolation
     from inbetween_jax.models.interaction.bench import windows_l2p
-    windows = {L: idata.eval_windows([take12], proto.N_INPUT, L, 60, 0.01, max_windows=3) for L in (30, 50)}
+    windows = {L: ibatches.eval_windows([take12], proto.N_INPUT, L, 60, 0.01, max_windows=3) for L in (30, 50)}
     stats = proto.l2p_stats([take12], 0.01)
     assert windows_l2p(proto.ground_truth_method, windows, stats) == pytest.approx([0.0, 0.0], abs=1e-6)
     got = windows_l2p(proto.interpolation_method, windows, stats)

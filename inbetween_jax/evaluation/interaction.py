@@ -27,7 +27,7 @@ from inbetween_jax import metrics
 from inbetween_jax.baselines.two_character import two_character_interpolation
 from inbetween_jax.evaluation.tables import markdown_table
 from inbetween_jax.geometry import quat_fix_sign, quat_from_forward_up
-from inbetween_jax.models.interaction.data import eval_windows, sample_batch
+from inbetween_jax.models.interaction.batches import eval_windows, sample_batch
 from inbetween_jax.models.interaction.features import to_common_space
 from inbetween_jax.models.interaction.layers import Discriminator, PeriodicAE, pjd_dynamics
 

@@ -1,5 +1,5 @@
-"""Two-character data for the interaction in-betweening model: paired BVH loading, constructed
-pairings, temporal splits, training batches and evaluation windows.
+"""Two-character data for the interaction in-betweening model: paired BVH loading, constructed pairings and
+temporal splits (training batches and evaluation windows: :mod:`inbetween_jax.models.interaction.batches`).
 
 Features and spaces are those of :mod:`inbetween_jax.models.interaction.features` (``(..., T, J, 9)``
 world features, rigid ``(R, t)`` keypose spaces).
@@ -8,9 +8,10 @@ Real paired captures: ``load_pair(a, b)`` (two BVH files sharing frame timing) a
 ``find_pair_files(folder)`` (``<name>_A.bvh`` / ``<name>_B.bvh``, a ``pairs.txt`` list of
 ``a.bvh b.bvh [train|test]`` lines, or two subjects' files sharing a take id such as the CMU salsa
 ``60_NN_scaled.bvh`` / ``61_NN_scaled.bvh``).  :func:`load_real_pairs` resamples them to 30 Hz, converts the
-detected unit to centimetres, drops joints that never move and splits whole takes (last sixth test).  Where none exist, :func:`construct_pairs` pairs single-person clips of the same
-choreography (LaFAN1 ``<action>_subjectN``) or consecutive clips, placing the second performer at a fixed
-floor offset facing the first, time-aligned by frame index.  Such pairs are flagged ``constructed=True``.
+detected unit to centimetres, drops joints that never move and splits whole takes (last sixth test).  Where
+none exist, :func:`construct_pairs` pairs single-person clips of the same choreography (LaFAN1
+``<action>_subjectN``) or consecutive clips, placing the second performer at a fixed floor offset facing the
+first, time-aligned by frame index.  Such pairs are flagged ``constructed=True``.
 """
 from __future__ import annotations
 
@@ -26,14 +27,12 @@ from inbetween_jax.data.features import detect_unit_scale
 from inbetween_jax.data.resample import WORKING_FPS, resample_motion
 from inbetween_jax.data.skeleton import Skeleton
 from inbetween_jax.geometry.heading import yaw_matrix
-from inbetween_jax.models.interaction.features import (apply_space, facing_yaw, keyframe_sample, mirror_feats,
-                                                       relative_space, root_space, scale_positions,
-                                                       skeleton_forward_axis, skeleton_side_axis, to_space,
-                                                       world_joint_features)
+from inbetween_jax.models.interaction.features import (apply_space, facing_yaw, root_space,
+                                                       skeleton_forward_axis, to_space, world_joint_features)
 
 __all__ = ["PairedMotion", "PairSet", "load_pair", "find_pair_files", "static_joints", "subset_skeleton",
            "real_pair_splits", "load_real_pairs", "place_facing", "construct_pairs",
-           "load_pairs", "augmented_pairs", "split_pairs", "load_pair_set", "sample_batch", "eval_windows"]
+           "load_pairs", "augmented_pairs", "split_pairs", "load_pair_set"]
 
 LAFAN_NAME = re.compile(r"^(?P<action>.+)_(?P<subject>subject\d+)\.bvh$")
 TAKE_NAME = re.compile(r"^(?P<subject>[^_]+)_(?P<take>\d+)(?:_[^.]*)?\.bvh$", re.IGNORECASE)
@@ -386,53 +385,3 @@ def load_pair_set(source: Optional[str], split: str, distance: float = 150.0,
     if not part:
         raise ValueError(f"{source}: no pair has frames in the {split!r} split")
     return PairSet(part, split, [dict(name=p.name, frames=p.num_frames, constructed=p.constructed) for p in pairs])
-
-
-# ----------------------------------------------------------------------------- samples
-def sample_batch(pairs: Sequence[PairedMotion], rng: np.random.Generator, batch: int, length: int = 50,
-                 key_range=(50, 70), mirror: bool = True, pos_scale: float = 0.01) -> dict:
-    """A random training batch (numpy float32): keys of :func:`keyframe_sample` with a leading batch axis;
-    positions multiplied by ``pos_scale``.  Mirroring (p = 0.5) is applied to both characters together."""
-    need = max(length, key_range[1] + 1)
-    lens = np.array([max(p.num_frames - need, 0) for p in pairs], np.float64)
-    if lens.sum() <= 0:
-        raise ValueError(f"no pair has the {need} frames a sample needs")
-    mm = pairs[0].skeleton.mirror_map()
-    idx = rng.choice(len(pairs), size=batch, p=lens / lens.sum())
-    starts = (rng.random(batch) * lens[idx]).astype(int)
-    keys = rng.integers(key_range[0], key_range[1] + 1, size=batch)
-    f = np.stack([pairs[i].feats[:, s:s + need] for i, s in zip(idx, starts)]).astype(np.float64)
-    if mirror:
-        flip = rng.random(batch) < 0.5
-        f[flip] = mirror_feats(f[flip], mm, skeleton_side_axis(pairs[0].skeleton))
-    kf = f[np.arange(batch), :, keys]                                       # (B, 2, J, 9)
-    R, t = root_space(kf[:, :, 0], pairs[0].forward_axis)
-    b = dict(x=to_space(f[:, :, :length], R[:, :, None], t[:, :, None]), keypose=to_space(kf, R, t))
-    b["rel_R"], b["rel_t"] = relative_space(R, t, R[:, ::-1], t[:, ::-1])
-    b["world_R"], b["world_t"] = R, t
-    b = {k: v.astype(np.float32) for k, v in b.items()}
-    return scale_positions(b, pos_scale)
-
-
-def eval_windows(pairs: Sequence[PairedMotion], n_input: int, transition: int, stride: int,
-                 pos_scale: float = 0.01, max_windows: Optional[int] = None) -> dict:
-    """Deterministic test samples: ``n_input`` frames, ``transition`` frames to fill, the keyframe right after.
-
-    Returns the :func:`keyframe_sample` keys with ``x`` (N, 2, n_input + transition + 1, J, 9) (last frame
-    = keyframe) plus ``names``.  Empty dict if nothing fits.
-    """
-    length = n_input + transition + 1
-    out, names = [], []
-    for p in pairs:
-        for s in range(0, p.num_frames - length + 1, stride):
-            out.append(keyframe_sample(p.feats, s, length, length - 1, p.forward_axis))
-            names.append(f"{p.name}@{s}")
-    if max_windows is not None and len(out) > max_windows:
-        sel = np.linspace(0, len(out) - 1, max_windows).round().astype(int)
-        out, names = [out[i] for i in sel], [names[i] for i in sel]
-    if not out:
-        return {}
-    b = {k: np.stack([o[k] for o in out]).astype(np.float32) for k in out[0]}
-    b = scale_positions(b, pos_scale)
-    b["names"] = names
-    return b

@@ -21,7 +21,8 @@ import numpy as np
 import optax
 
 from inbetween_jax.evaluation.interaction import guess_gap_length
-from inbetween_jax.models.interaction.data import PairSet, augmented_pairs, load_pair_set, sample_batch
+from inbetween_jax.models.interaction.batches import sample_batch
+from inbetween_jax.models.interaction.data import PairSet, augmented_pairs, load_pair_set
 from inbetween_jax.models.interaction.losses import discriminator_objective, generator_objective
 from inbetween_jax.models.interaction.model import init_params, tta_flagged
 from inbetween_jax.models.spec import Training
@@ -60,7 +61,7 @@ def training_batch(pairs, rng: np.random.Generator, cfg) -> dict:
     predicted frames (index T + 1 .. T + P*l - 1); their frames after the keyframe are replaced by the
     keypose, so the model learns to arrive and stay.  The other samples take the keyframe in
     ``data.key_min .. key_max`` as the paper does.  Without those switches this is exactly one
-    :func:`.data.sample_batch` call.
+    :func:`.batches.sample_batch` call.
 
     With ``data.tta_guess`` (flagged models, :func:`.model.tta_flagged`) each sample's ``tta`` is, with that
     probability, the evaluation's guess from the context frames and the keypose (guessed gap + 1,
