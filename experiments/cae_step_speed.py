@@ -3,6 +3,7 @@
     python experiments/cae_step_speed.py layers      # conv weight gradients: XLA's against shifted-slice matmuls
     python experiments/cae_step_speed.py grad        # the CAE loss gradient: each change on and off, one process
     python experiments/cae_step_speed.py flags [--rounds 3]   # train steps under each YNNPACK setting
+    python experiments/cae_step_speed.py profile [MODEL]      # a train step's op time by XLA op kind (cae)
 
 ``layers`` times, per conv shape of the CAE (batch 16, 66 x 168 input), the weight gradient of XLA's own
 autodiff against the custom VJP the model used before (kh*kw shifted-slice matmuls).  ``grad`` times the
@@ -171,13 +172,32 @@ def flags(rounds: int):
         print(f"| {model} | " + " | ".join(f"{min(per[s]):.0f}-{max(per[s]):.0f}" for s in SETTINGS) + " |")
 
 
+def profile(model: str, calls: int = 5):
+    """The op time of ``model``'s train step by XLA op kind (:func:`inbetween_jax.profiling.op_ms_by_kind`), then
+    the median step without the profiler in the same process."""
+    from inbetween_jax.profiling import op_ms_by_kind
+    one = step_call(model)
+    wall, kinds, covered = op_ms_by_kind(one, calls)
+    total = sum(kinds.values())
+    print(f"{model}: {wall:.1f} ms per step under the profiler, {total:.1f} ms of traced op time, some op running "
+          f"during {covered:.1f} ms; without the profiler {_ms(one):.1f} ms (median of 9)")
+    print("| op kind | ms per step | share of op time |\n|---|---|---|")
+    for name, ms in kinds.items():
+        if ms >= 0.01 * total:
+            print(f"| `{name}` | {ms:.2f} | {100 * ms / total:.1f} % |")
+
+
 if __name__ == "__main__":
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("what", choices=("layers", "grad", "flags", "step"))
+    p.add_argument("what", choices=("layers", "grad", "flags", "step", "profile"))
     p.add_argument("model", nargs="?", choices=MODELS)
     p.add_argument("--rounds", type=int, default=3)
     a = p.parse_args()
     if a.what == "step":
         print(f"{step_ms(a.model):.3f}")
+    elif a.what == "profile":
+        from inbetween_jax import xla_cpu
+        xla_cpu.configure((a.model or "cae").split("-")[0])          # as `inbetween` runs the model
+        profile(a.model or "cae")
     else:
         {"layers": layers, "grad": grad, "flags": lambda: flags(a.rounds)}[a.what]()

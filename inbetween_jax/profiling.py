@@ -16,7 +16,8 @@ import jax.extend.core as jex
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["block", "time_calls", "median_ms", "compile_seconds", "matmul_flops", "matmul_peak_flops"]
+__all__ = ["block", "time_calls", "median_ms", "compile_seconds", "matmul_flops", "matmul_peak_flops",
+           "op_ms_by_kind"]
 
 
 def block(x: Any) -> Any:
@@ -106,3 +107,49 @@ def matmul_peak_flops(n: int = 1024, reps: int = 20) -> float:
     f = jax.jit(lambda x, y: x @ y)
     times = time_calls(lambda: f(a, b), reps=reps, warmup=2)
     return 2.0 * n ** 3 / float(np.median(times))
+
+
+_OP_NAME = r"[a-z][a-z0-9_-]*"      # XLA op names; runtime spans and Python frames have capitals, spaces, '$', ':'
+
+
+def op_ms_by_kind(fn: Callable[[], Any], calls: int = 5, trace_dir: str | None = None) -> tuple:
+    """Where the time of ``fn()`` goes, from a :mod:`jax.profiler` trace of ``calls`` calls (after one untimed).
+
+    Returns ``(wall ms per call under the profiler, {op kind: ms per call}, covered ms per call)``: kinds are
+    XLA's op names without their ``.N`` suffix (``transpose_copy_fusion``, ``conv_general_dilated``, ...), largest
+    first, summed over threads (so they can exceed the wall time); ``covered`` is the time during which some op
+    ran (the union of their intervals).  Work an op hands to threads the trace does not follow shows in neither.
+    """
+    import collections
+    import glob
+    import gzip
+    import json
+    import re
+    import shutil
+    import tempfile
+    block(fn())
+    folder = trace_dir or tempfile.mkdtemp(prefix="op_ms_")
+    try:
+        with jax.profiler.trace(folder, create_perfetto_trace=True):
+            t0 = time.perf_counter()
+            for _ in range(calls):
+                block(fn())
+            wall = (time.perf_counter() - t0) / calls * 1e3
+        path = glob.glob(f"{folder}/**/*.trace.json.gz", recursive=True)[0]
+        with gzip.open(path) as f:
+            trace = json.load(f)
+    finally:
+        if trace_dir is None:
+            shutil.rmtree(folder, ignore_errors=True)
+    events = trace["traceEvents"] if isinstance(trace, dict) else trace
+    kinds, spans = collections.Counter(), []
+    for e in events:
+        op = re.fullmatch(rf"({_OP_NAME})(\.\d+)?", e.get("name", ""))
+        if e.get("ph") == "X" and "dur" in e and op:
+            kinds[op.group(1)] += e["dur"] / 1e3 / calls
+            spans.append((e["ts"], e["ts"] + e["dur"]))
+    covered, end = 0.0, -np.inf
+    for a, b in sorted(spans):                       # union of the op intervals (microseconds)
+        covered += max(b - max(a, end), 0.0)
+        end = max(end, b)
+    return wall, dict(kinds.most_common()), covered / 1e3 / calls
