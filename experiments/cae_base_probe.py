@@ -25,8 +25,9 @@ import numpy as np
 from inbetween_jax.data import load_motions
 from inbetween_jax.data.activities import activity_group
 from inbetween_jax.geometry import forward_kinematics
-from inbetween_jax.models.cae.features import body_frame_features, to_global
+from inbetween_jax.models.cae.features import body_frame_features
 from inbetween_jax.models.cae.gate import base_fill
+from inbetween_jax.models.cae.in_file import gap_positions, gap_starts
 from inbetween_jax.models.cae.infer import load
 from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
 from inbetween_jax.baselines import hermite_fill
@@ -40,7 +41,6 @@ p.add_argument("--windows", default="8,15,30")
 a = p.parse_args()
 model = load(load_run(a.run_dir))
 j = model.num_joints
-bound = float(model.cfg.model.root_bound) * 100
 limits = [float(v) for v in a.limits.split(",")]
 pulls = [float(v) for v in a.pulls.split(",")]
 windows = [int(v) for v in a.windows.split(",")]
@@ -53,7 +53,7 @@ for set_name, split in (("validation", "val-subjects"), ("fit", "fit-subjects"))
         gp = forward_kinematics(m.local_quats, m.local_pos, m.skeleton.parents)[1]
         group = activity_group(str(m.source))
         for g in (int(round(m.fps)), int(round(2 * m.fps))):
-            for lo in range(10, m.num_frames - g - 10, max(g, 30)):
+            for lo in gap_starts(m.num_frames, g):
                 hi = lo + g
                 fm = gap_frames(m.num_frames, [(lo, hi)])
                 feats = body_frame_features(m, known=fm > 0.5)          # nothing read from the gap
@@ -62,9 +62,7 @@ for set_name, split in (("validation", "val-subjects"), ("fit", "fit-subjects"))
                 base = base_fill(model, xm[None], mask[None])[0]
 
                 def error(yy):
-                    pos = to_global(yy, model.normalizer, j, feats.ref0, feats.yaw0, known_feats=feats.features,
-                                    frame_mask=fm, root_bound=bound, known_track=(feats.ref, feats.yaw))
-                    return float(np.linalg.norm(pos[lo:hi] - gp[lo:hi], axis=-1).mean())
+                    return float(np.linalg.norm(gap_positions(model, yy, feats, fm)[lo:hi] - gp[lo:hi], axis=-1).mean())
                 e0 = error(base)
                 s = np.arange(1, g + 1) / (g + 1)
                 ratios = []

@@ -29,7 +29,8 @@ from inbetween_jax.data.activities import activity_group
 from inbetween_jax.geometry import forward_kinematics
 from inbetween_jax.models.cae.bank import (MARGIN, MatchBank, departure, gate_distance, match_candidates,
                                            match_weight, speed_beside)
-from inbetween_jax.models.cae.features import body_frame_features, body_positions, to_global
+from inbetween_jax.models.cae.features import body_frame_features, body_positions
+from inbetween_jax.models.cae.in_file import gap_positions, gap_starts
 from inbetween_jax.models.cae.infer import fill, load
 from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
 from inbetween_jax.models.ood import BLEND_WEIGHTS, calibrate_gate, gated_ratio, held_out_ratios
@@ -48,7 +49,6 @@ run = load_run(a.run_dir)
 model = load(run)
 j, mc = model.num_joints, model.cfg.model
 bank = MatchBank.from_transition_bank(scvae_bank(run, "cmu", "fit-subjects"), model.skeleton, model.normalizer, j)
-bound = float(mc.root_bound) * 100
 self_tempos = tuple(float(t) for t in a.self_tempos.split(","))
 
 
@@ -64,7 +64,7 @@ for m, exclude, set_name in motions:
     gp = forward_kinematics(m.local_quats, m.local_pos, m.skeleton.parents)[1]
     group = activity_group(str(m.source))
     for g in (int(round(m.fps)), int(round(2 * m.fps))):                  # 1 and 2 s gaps, as the shipped choice
-        for lo in range(10, m.num_frames - g - 10, max(g, 30)):
+        for lo in gap_starts(m.num_frames, g):
             hi = lo + g
             fm = gap_frames(m.num_frames, [(lo, hi)])
             feats = body_frame_features(m, known=fm > 0.5)                # nothing read from the gap
@@ -73,9 +73,7 @@ for m, exclude, set_name in motions:
             y = fill(model, x, frame_mask_image(fm, j))                    # the shipped fill, gated
 
             def error(yy):
-                pos = to_global(yy, model.normalizer, j, feats.ref0, feats.yaw0, known_feats=feats.features,
-                                frame_mask=fm, root_bound=bound, known_track=(feats.ref, feats.yaw))
-                return np.linalg.norm(pos[lo:hi] - gp[lo:hi], axis=-1).mean()
+                return np.linalg.norm(gap_positions(model, yy, feats, fm)[lo:hi] - gp[lo:hi], axis=-1).mean()
             base = error(y)
 
             def ratios(matched):                                           # at each blend weight, over the fill

@@ -25,7 +25,8 @@ from inbetween_jax.evaluation.worst_case import summarise
 from inbetween_jax.geometry import forward_kinematics
 from inbetween_jax.metrics.steps import lift_offs
 from inbetween_jax.models.cae.bank import MatchBank, departure, gate_distance, match_gap, match_weight, speed_beside
-from inbetween_jax.models.cae.features import body_frame_features, to_global
+from inbetween_jax.models.cae.features import body_frame_features
+from inbetween_jax.models.cae.in_file import gap_positions, gap_starts
 from inbetween_jax.models.cae.infer import fill, load
 from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
 from inbetween_jax.models.ood import BLEND_WEIGHTS, calibrate_gate, gated_ratio, held_out_ratios
@@ -59,7 +60,6 @@ model = load(run)
 j, feet = model.num_joints, model.skeleton.foot_joints()
 bank = MatchBank.from_transition_bank(scvae_bank(run, "cmu", "fit-subjects"), model.skeleton, model.normalizer, j,
                                   tempos=[float(t) for t in a.tempos.split(",")], mirror=a.mirror)
-bound = float(model.cfg.model.root_bound) * 100
 configs = [(int(k), float(d)) for k in a.k.split(",") for d in a.disp.split(",")]
 records = collections.defaultdict(list)
 
@@ -77,7 +77,7 @@ for m, exclude in motions:
     group = activity_group(str(m.source))
     for sec in [float(s) for s in a.seconds.split(",")]:
         g = int(round(sec * m.fps))
-        for lo in range(10, m.num_frames - g - 10, max(g, 30)):
+        for lo in gap_starts(m.num_frames, g):
             fm = gap_frames(m.num_frames, [(lo, lo + g)])
             mask = frame_mask_image(fm, j)
             # as infill: no known frame's features read the gap (--leaky: the whole file's, as before 2026-12-05)
@@ -90,8 +90,7 @@ for m, exclude in motions:
             span = slice(lo - 1, lo + g + 1)
 
             def positions(yy):
-                return to_global(yy, model.normalizer, j, feats.ref0, feats.yaw0, known_feats=feats.features,
-                                 frame_mask=fm, root_bound=bound, known_track=(feats.ref, feats.yaw))
+                return gap_positions(model, yy, feats, fm)
             base_pos = positions(y)
             base_err = np.linalg.norm(base_pos[lo:lo + g] - gp[lo:lo + g], axis=-1).mean()
             beside = speed_beside(ref, lo, lo + g)                   # known frames only, cm per frame

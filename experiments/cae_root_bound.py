@@ -12,6 +12,7 @@ import numpy as np
 from inbetween_jax.data import load_motions
 from inbetween_jax.evaluation.worst_case import summarise
 from inbetween_jax.geometry import forward_kinematics
+from inbetween_jax.models.cae.in_file import gap_starts
 from inbetween_jax.models.cae.infer import load, process_motion
 from inbetween_jax.models.ood import load_gate
 from inbetween_jax.train.run import load_run
@@ -35,7 +36,7 @@ for bound in [float(b) for b in a.bounds.split(",")]:
         gp = forward_kinematics(m.local_quats, m.local_pos, m.skeleton.parents)[1]
         for sec in [float(s) for s in a.seconds.split(",")]:
             g = int(round(sec * m.fps))
-            for lo in range(10, m.num_frames - g - 10, max(g, 30)):
+            for lo in gap_starts(m.num_frames, g):
                 pos = process_motion(model, m, [(lo, lo + g)])["positions"]
                 w = (np.arange(1, g + 1) / (g + 1))[:, None, None]
                 lin = gp[lo - 1] + w * (gp[lo + g] - gp[lo - 1])

@@ -45,7 +45,8 @@ from inbetween_jax.evaluation.speed_timing import (COMPILE_TIMEOUT_S, TORCH_BACK
                                                    first_call_s as _first_call_s, side_by_side as _side_by_side)
 from inbetween_jax.malloc import MARK_ENV as MALLOC_MARK
 
-__all__ = ["run", "markdown", "scvae_rows", "scvae_step_setup", "cae_rows", "cae_train_rows", "interaction_rows", "TORCH_BACKENDS"]
+__all__ = ["run", "markdown", "scvae_rows", "scvae_step_setup", "cae_rows", "cae_train_rows", "interaction_rows",
+           "TORCH_BACKENDS"]
 
 
 def scvae_step_setup(variant, data, stats, batch=32, n_trans=50):

@@ -6,34 +6,53 @@ gap.  The bench writes these as ``per_window`` rows of its own split names (``"t
 ``"validation, inside a file"``).
 
     gap_records(model, motions, seconds=(1, 2)) -> list of {"name", "frames", "ratio", "x_straight", "matched"}
+
+The experiments that score the CAE's gaps inside files (``experiments/cae_*.py``) take the same gaps
+(:func:`gap_starts`) and put fills back into global positions the same way (:func:`gap_positions`).
 """
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["gap_records", "SECONDS", "MARGIN_FRAMES"]
+__all__ = ["gap_records", "gap_starts", "gap_positions", "SECONDS", "MARGIN_FRAMES"]
 
 SECONDS = (1, 2)          # gap lengths, as the validation choice of the match (experiments/cae_motion_match.py)
 MARGIN_FRAMES = 10        # known frames kept before the first gap and after the last
+
+
+def gap_starts(num_frames: int, length: int) -> range:
+    """First frames of the ``length``-frame gaps scored in a file of ``num_frames`` frames: every ``max(length,
+    30)`` frames, :data:`MARGIN_FRAMES` known frames kept before the first and after the last."""
+    return range(MARGIN_FRAMES, num_frames - length - MARGIN_FRAMES, max(length, 30))
+
+
+def gap_positions(model, y_norm, feats, frame_mask) -> np.ndarray:
+    """(T, J, 3) global joint positions of one filled clip ``y_norm`` (D, T, normalised) as ``infill`` puts them
+    back: the known frames on their own root track (``feats``: the file's
+    :class:`~inbetween_jax.models.cae.features.MotionFeatures`), each gap's root held to the run's
+    ``model.root_bound`` around the Hermite root path."""
+    from inbetween_jax.models.cae.features import to_global
+    bound = float(getattr(model.cfg.model, "root_bound", 0.0)) * 100.0
+    return to_global(y_norm, model.normalizer, model.num_joints, feats.ref0, feats.yaw0, known_feats=feats.features,
+                     frame_mask=frame_mask, root_bound=bound, known_track=(feats.ref, feats.yaw))
 
 
 def gap_records(model, motions, seconds=SECONDS, limit: int | None = None) -> list:
     """One record per gap: every ``max(g, 30)`` frames of each motion (at its own rate), ``g`` the gap length in
     frames; ``limit`` caps the gaps per length (quick benches).  Motions must be on the model's skeleton."""
     from inbetween_jax.geometry import forward_kinematics
-    from inbetween_jax.models.cae.features import body_frame_features, to_global
+    from inbetween_jax.models.cae.features import body_frame_features
     from inbetween_jax.models.cae.gate import base_fill
     from inbetween_jax.models.cae.infer import process_motion
     from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
     j = model.num_joints
-    bound = float(getattr(model.cfg.model, "root_bound", 0.0)) * 100.0
     out = []
     for sec in seconds:
         n_len = 0
         for m in motions:
             g = int(round(sec * float(m.fps)))
             gp = forward_kinematics(m.local_quats, m.local_pos, m.skeleton.parents)[1]
-            for lo in range(MARGIN_FRAMES, m.num_frames - g - MARGIN_FRAMES, max(g, 30)):
+            for lo in gap_starts(m.num_frames, g):
                 if limit is not None and n_len >= limit:
                     break
                 n_len += 1
@@ -42,9 +61,7 @@ def gap_records(model, motions, seconds=SECONDS, limit: int | None = None) -> li
                 feats = body_frame_features(m, known=fm > 0.5)
                 mask = frame_mask_image(fm, j)
                 x = model.normalizer(feats.features).T.astype(np.float32)
-                base = to_global(base_fill(model, (x * mask)[None], mask[None])[0], model.normalizer, j, feats.ref0,
-                                 feats.yaw0, known_feats=feats.features, frame_mask=fm, root_bound=bound,
-                                 known_track=(feats.ref, feats.yaw))
+                base = gap_positions(model, base_fill(model, (x * mask)[None], mask[None])[0], feats, fm)
                 w = (np.arange(1, g + 1) / (g + 1))[:, None, None]
                 straight = gp[lo - 1] + w * (gp[lo + g] - gp[lo - 1])
 
