@@ -161,8 +161,9 @@ def test_mirror_copy_matches_the_mirrored_motion(shipped, motions):
 
 
 def test_shipped_walk_gap_follows_a_training_walk(shipped):
-    """A validation subject's walk (never in the bank): the matched fill is used, is recorded per gap, and steps
-    more than the fill without it."""
+    """A validation subject's walk (never in the bank): the matched fill is used, is recorded per gap, is nearer
+    the capture than the fill without it, and lifts its feet about as often as the capture (the network's own fill
+    lifts them more often: it shuffles)."""
     from inbetween_jax.metrics.steps import lift_offs
     from inbetween_jax.models.cae.infer import process_motion
     assert shipped.match is not None and shipped.cfg.model.match_k > 0, "the shipped CAE matches gaps"
@@ -176,7 +177,8 @@ def test_shipped_walk_gap_follows_a_training_walk(shipped):
     feet = shipped.skeleton.foot_joints()
     span = slice(gap[0] - 1, gap[1] + 1)
     steps = [float(lift_offs(r["positions"][span], (feet[0], feet[2]))) for r in (res, plain)]
-    assert steps[0] > steps[1]
+    captured = float(lift_offs(walk.global_positions()[span], (feet[0], feet[2])))
+    assert steps[0] >= 1 and abs(steps[0] - captured) < abs(steps[1] - captured)
     truth = walk.global_positions()[gap[0]:gap[1]]
     err = [np.linalg.norm(r["positions"][gap[0]:gap[1]] - truth, axis=-1).mean() for r in (res, plain)]
     assert err[0] < err[1]

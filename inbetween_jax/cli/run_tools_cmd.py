@@ -2,7 +2,7 @@
 and ``inbetween ship-weights``, on validation data only.
 
     inbetween select-checkpoint RUN_DIR [--source S]       score every checkpoint on the validation split
-    inbetween calibrate-gate RUN_DIR [--source S]          the out-of-distribution gate's thresholds
+    inbetween calibrate-gate RUN_DIR [--source S] [--kind K]   the out-of-distribution gate's score and thresholds
     inbetween build-bank RUN_DIR [--split fit] [--mirror] [--set KEY=VALUE ...]   the run's motion bank
 
 ``select-checkpoint`` writes ``RUN_DIR/selection.json`` (loading the run then uses that step; ``inbetween train``
@@ -34,7 +34,10 @@ def add_parser(sub) -> None:
         return p
 
     one("select-checkpoint", "choose a run's checkpoint on its validation split", run_select)
-    one("calibrate-gate", "calibrate a run's out-of-distribution gate on its validation split", run_calibrate)
+    p = one("calibrate-gate", "calibrate a run's out-of-distribution gate on its validation split", run_calibrate)
+    p.add_argument("--kind", default=None, choices=("knn", "travel"),
+                   help="S-CVAE / CAE: the gate's score, the context's k-NN distance to the training split's or how "
+                        "fast the root travels (default: the model's, travel for the S-CVAE, knn for the CAE)")
     p = one("build-bank", "write a run's motion bank (training files without the validation ones)", run_bank)
     p.add_argument("--split", default="fit", choices=("fit", "train"), help="motions the bank holds (default fit)")
     p.add_argument("--mirror", action="store_true", help="S-CVAE: add each motion's mirror image to the bank")
@@ -67,7 +70,11 @@ def run_calibrate(args) -> int:
     if importlib.util.find_spec(f"inbetween_jax.models.{run.model}.calibrate") is None:
         raise UserError(f"{args.run_dir}: the {run.model} model has no out-of-distribution gate")
     from inbetween_jax.models.ood import calibrate_run
-    print(json.dumps(calibrate_run(args.run_dir, source), indent=1, default=float))
+    if args.kind is not None and run.model not in ("scvae", "cae"):
+        raise UserError(f"{args.run_dir}: --kind is for the S-CVAE and the CAE; the {run.model} model's gate has "
+                        "one score")
+    kwargs = {} if args.kind is None else {"kind": args.kind}
+    print(json.dumps(calibrate_run(args.run_dir, source, **kwargs), indent=1, default=float))
     return 0
 
 

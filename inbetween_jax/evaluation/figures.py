@@ -228,6 +228,7 @@ def calibration_figure(records: Sequence[dict], lo: float, hi: float, path, titl
 
 
 XLABELS = {"travel": "out-of-distribution score: 1 / (1 + keyframe root travel per frame / c)",
+           "cae:travel": "out-of-distribution score: 1 / (1 + the root's floor speed beside the gap / c)",
            "speed": "out-of-distribution score: 1 / (1 + mean joint speed at the last known frame / (1 cm per frame))"}
 
 
@@ -253,7 +254,8 @@ def worst_case_figures(rows: Sequence[dict], results_dir, calibrations: dict | N
                     cal = json.load(f)
                 name = f"ood_calibration_{model}.png"
                 s = cal["summary"]
-                kw = {"xlabel": XLABELS[s["kind"]]} if s.get("kind") in XLABELS else {}
+                label = XLABELS.get(f"{model}:{s.get('kind')}") or XLABELS.get(s.get("kind"))
+                kw = {"xlabel": label} if label else {}
                 if calibration_figure(cal["records"], s["lo"], s["hi"], os.path.join(results_dir, name),
                                       f"{model}: validation windows, error ratio against the OOD score", dpi=dpi,
                                       **kw):

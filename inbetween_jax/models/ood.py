@@ -23,9 +23,10 @@ import os
 
 import numpy as np
 
-__all__ = ["ContextBank", "TravelScore", "SpeedScore", "Gate", "build_bank", "calibrate_gate", "held_out_ratios",
-           "gated_ratio", "BLEND_WEIGHTS", "OOD_FILE", "gate_note", "save_gate", "load_gate", "gated_records",
-           "calibrate_run", "CALIBRATION_FILE", "run_gate", "calibration_worst_case", "load_gate_array"]
+__all__ = ["ContextBank", "TravelScore", "SpeedScore", "FloorSpeedScore", "Gate", "build_bank", "calibrate_gate",
+           "held_out_ratios", "gated_ratio", "BLEND_WEIGHTS", "OOD_FILE", "gate_note", "save_gate", "load_gate",
+           "gated_records", "calibrate_run", "CALIBRATION_FILE", "run_gate", "calibration_worst_case",
+           "load_gate_array"]
 
 OOD_FILE = "ood.npz"                              # the bank and gate in a run folder / shipped weights folder
 BLEND_WEIGHTS = (0.0, 0.25, 0.5, 0.75, 1.0)       # weights of the learned fill at which calibration scores windows
@@ -110,6 +111,41 @@ class SpeedScore:
 
     def arrays(self, prefix: str = "speed_") -> dict:
         return {f"{prefix}c": np.float64(self.c)}
+
+
+@dataclasses.dataclass
+class FloorSpeedScore:
+    """A score from how fast the root moves over the floor at the known frames beside a gap: ``1 / (1 + v / c)``,
+    ``v`` the mean floor speed (data units per frame) over the context's frames.  It reads a CAE gap context
+    (:func:`inbetween_jax.models.cae.gate.gap_context`: ``frames`` columns of ``dims`` normalised features, then
+    the gap length): the rows ``rows`` of each column are the root's floor velocity, normalised with ``mean`` /
+    ``std`` (2,).  1 beside a body standing still, 0.5 at ``c`` per frame: a CAE whose training motion is mostly
+    locomotion may help where the body travels and harm motion in place (docs/results/gate.md)."""
+    dims: int
+    frames: int
+    rows: np.ndarray
+    mean: np.ndarray
+    std: np.ndarray
+    c: float = 1.0
+
+    def speed(self, desc) -> np.ndarray:
+        """(B,) mean floor speed of the contexts (B, frames * dims + 1)."""
+        d = np.asarray(desc, np.float64)
+        cols = d[:, :-1].reshape(len(d), self.frames, self.dims)[:, :, np.asarray(self.rows, int)]
+        v = cols * np.asarray(self.std, np.float64) + np.asarray(self.mean, np.float64)
+        return np.linalg.norm(v, axis=-1).mean(1)
+
+    def score(self, desc) -> np.ndarray:
+        return 1.0 / (1.0 + self.speed(desc) / self.c)
+
+    def arrays(self, prefix: str = "floor_") -> dict:
+        return {f"{prefix}{k}": np.asarray(v) for k, v in dataclasses.asdict(self).items()}
+
+    @classmethod
+    def from_arrays(cls, arrays, prefix: str = "floor_") -> "FloorSpeedScore":
+        a = {f.name: arrays[f"{prefix}{f.name}"] for f in dataclasses.fields(cls)}
+        return cls(int(a["dims"]), int(a["frames"]), np.asarray(a["rows"], np.int64),
+                   np.asarray(a["mean"], np.float64), np.asarray(a["std"], np.float64), float(a["c"]))
 
 
 def build_bank(desc, dims: int = 32, k: int = 4, max_items: int = 4000, seed: int = 0) -> ContextBank:
@@ -207,8 +243,9 @@ def gate_note(score: float, weight: float, base: str) -> str:
 
 
 def save_gate(run_dir: str, bank, gate: Gate, summary: dict | None = None, arrays: dict | None = None) -> str:
-    """Write ``ood.npz`` (the scorer -- a :class:`ContextBank`, :class:`TravelScore` or :class:`SpeedScore` -- +
-    gate thresholds + the calibration summary's numbers + a model's own ``arrays``) atomically."""
+    """Write ``ood.npz`` (the scorer -- a :class:`ContextBank`, :class:`TravelScore`, :class:`SpeedScore` or
+    :class:`FloorSpeedScore` -- + gate thresholds + the calibration summary's numbers + a model's own ``arrays``)
+    atomically."""
     path = os.path.join(run_dir, OOD_FILE)
     extra = {f"summary_{k}": np.asarray(v) for k, v in (summary or {}).items()
              if isinstance(v, (int, float, bool, np.floating, np.integer))}
@@ -235,6 +272,8 @@ def load_gate(run_dir: str):
                 scorer = TravelScore(int(z["travel_num_joints"]), float(z["travel_c"]))
             elif "speed_c" in z.files:
                 scorer = SpeedScore(float(z["speed_c"]))
+            elif "floor_c" in z.files:
+                scorer = FloorSpeedScore.from_arrays(z)
             else:
                 scorer = ContextBank.from_arrays(z)
             return scorer, Gate(float(z["gate_lo"]), float(z["gate_hi"]))

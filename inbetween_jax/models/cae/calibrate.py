@@ -25,23 +25,32 @@ def per_window_rows(positions, names, methods, data, runs, models) -> list:
     return out
 
 
-def calibrate(run, source: str, seconds=(1, 2), clip: int = 96, positions=(-12, 0, 12)) -> dict:
+def calibrate(run, source: str, seconds=(1, 2), clip: int = 96, positions=(-12, 0, 12), kind: str = "knn",
+              floor_c: float = 1.0) -> dict:
     """Build the bank from the run's training split and choose the gate on its validation split (never the
     test clips): gaps of ``seconds`` centred in each validation clip and shifted by ``positions`` frames.
-    Returns ``{"bank", "gate", "summary", "records"}``; a record per clip and gap (``name`` the clip index,
-    ``frames``, ``score``, ``ratios_at``: body-frame joint error / the pre-fill's at each blend weight)."""
+
+    kind: the gate's score -- ``"knn"`` (the k-NN distance of the gap's context to the training split's,
+    :class:`~inbetween_jax.models.ood.ContextBank`) or ``"travel"`` (the root's floor speed beside the gap,
+    :func:`.gate.floor_scorer`, ``floor_c`` data units per frame).  Both are recorded per gap.
+    Returns ``{"bank" (the scorer), "gate", "summary", "records"}``; a record per clip and gap (``name`` the clip,
+    ``frames``, ``score`` (the gate's), ``knn_score``, ``floor_speed``, ``ratios_at``: body-frame joint error /
+    the pre-fill's at each blend weight)."""
     from inbetween_jax.data import load_motions
     from inbetween_jax.evaluation import infilling as proto
     from inbetween_jax.models.cae.features import body_positions
     from inbetween_jax.data.datasets import val_split_of
-    from inbetween_jax.models.cae.gate import base_fill, gap_context, training_contexts
+    from inbetween_jax.models.cae.gate import base_fill, floor_scorer, gap_context, training_contexts
     from inbetween_jax.models.cae.infer import fill, load
     from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
     from inbetween_jax.models.cae.train import load_data
     from inbetween_jax.models.ood import BLEND_WEIGHTS, build_bank, calibrate_gate
     model = load(run)
     split = run.config.get("train", {}).get("split", "fit")
+    if kind not in ("knn", "travel"):
+        raise ValueError(f"unknown gate score {kind!r}: knn or travel")
     bank = build_bank(training_contexts(load_data(model.cfg, source, split).bank))
+    floor = floor_scorer(model.normalizer, model.num_joints, floor_c)
     motions = load_motions(source, val_split_of(split))
     x = proto.test_clips(motions, model.normalizer, clip, clip // 2)
     names = [short_name(m.source) for m in motions for s in range(0, m.num_frames - clip + 1, clip // 2)]
@@ -62,13 +71,17 @@ def calibrate(run, source: str, seconds=(1, 2), clip: int = 96, positions=(-12, 
                 return d[:, a:a + g].mean((1, 2))
             b_err = np.maximum(err(base), 1e-6)
             at = np.stack([err(base + w * (learned - base)) for w in BLEND_WEIGHTS], 1) / b_err[:, None]
-            score = bank.score(gap_context(x, a, a + g))
-            records += [{"name": names[i], "frames": g, "score": float(score[i]), "ratios_at": at[i].tolist(),
-                         "base_cm": float(b_err[i])} for i in range(len(x))]
+            ctx = gap_context(x, a, a + g)
+            knn, speed = bank.score(ctx), floor.speed(ctx)
+            score = knn if kind == "knn" else floor.score(ctx)
+            records += [{"name": names[i], "frames": g, "score": float(score[i]), "knn_score": float(knn[i]),
+                         "floor_speed": float(speed[i]), "ratios_at": at[i].tolist(), "base_cm": float(b_err[i])}
+                        for i in range(len(x))]
     from inbetween_jax.data.activities import activity_group
     gate, summary = calibrate_gate([r["score"] for r in records], [r["ratios_at"] for r in records],
                                    groups=[f"{activity_group(r['name'])}/{r['frames']}" for r in records])
-    return {"bank": bank, "gate": gate, "summary": dict(summary, lo=gate.lo, hi=gate.hi), "records": records}
+    return {"bank": bank if kind == "knn" else floor, "gate": gate,
+            "summary": dict(summary, lo=gate.lo, hi=gate.hi, kind=kind), "records": records}
 
 
 def short_name(path: str) -> str:

@@ -219,8 +219,11 @@ def to_global(y_norm, normalizer: Normalizer, num_joints: int, ref0, yaw0: float
     t_len = len(ref)
     for a, b in gap_ranges(frame_mask):
         start = max(a - 1, 0)
-        seg_ref, seg_yaw = integrate_root(vy[start:b + 1] if b < t_len else vy[start:b],
-                                          ref[start] if a > 0 else ref0, yaw[start] if a > 0 else yaw0)
+        # a leading gap starts from the known frame b's position (the path is hung from it below), so frame 0's
+        # position, which lies in the gap, does not enter even by rounding
+        start_ref = ref[start] if a > 0 else (ref[b] if b < t_len else ref0)
+        seg_ref, seg_yaw = integrate_root(vy[start:b + 1] if b < t_len else vy[start:b], start_ref,
+                                          yaw[start] if a > 0 else yaw0)
         n = b - a
         if b < t_len:  # spread the mismatch at the known frame b over the gap (a leading gap: the whole of it,
             # so the path hangs from frame b and never from frame 0, which lies in the gap)

@@ -5,13 +5,14 @@ Context of a gap ``[a, b)`` in a normalised clip image (D, T): the feature colum
 body-frame joint positions and root velocities) of the known frames ``a - 1, a - 4, a - 8`` before it and ``b,
 b + 3, b + 7`` after it (clipped into the clip), plus the gap's length / 30.  The bank holds the same for random
 gaps in the training clips.  ``ood.npz`` in the run (or shipped) folder holds bank and gate; ``model.ood_gate``
-switches the blend on.
+switches the blend on.  Instead of the bank, the score may be the root's floor speed at those frames
+(:func:`floor_scorer`, ``inbetween calibrate-gate RUN_DIR --kind travel``).
 """
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["CONTEXT_FRAMES", "gap_context", "training_contexts", "base_fill", "gate_clips"]
+__all__ = ["CONTEXT_FRAMES", "gap_context", "training_contexts", "base_fill", "gate_clips", "floor_scorer"]
 
 CONTEXT_FRAMES = (-1, -4, -8, 0, 3, 7)     # offsets from a (negative) and from b (the rest)
 
@@ -26,6 +27,18 @@ def gap_context(x_norm, a, b) -> np.ndarray:
     i = np.arange(n)
     feats = [x[i, :, c] for c in cols]                                          # each (N, D)
     return np.concatenate(feats + [((b - a) / 30.0)[:, None]], axis=1)
+
+
+def floor_scorer(normalizer, num_joints: int, c: float = 1.0):
+    """A :class:`~inbetween_jax.models.ood.FloorSpeedScore` of :func:`gap_context` contexts: the root's floor
+    velocity (features ``3J``, ``3J + 1``: :mod:`.features`) at the context's known frames, ``c`` data units per
+    frame."""
+    from inbetween_jax.models.cae.features import num_features
+    from inbetween_jax.models.ood import FloorSpeedScore
+    rows = np.array([3 * num_joints, 3 * num_joints + 1])
+    return FloorSpeedScore(num_features(num_joints), len(CONTEXT_FRAMES), rows,
+                           np.asarray(normalizer.mean, np.float64)[rows], np.asarray(normalizer.std, np.float64)[rows],
+                           float(c))
 
 
 def training_contexts(bank, count: int = 4000, gaps=(15, 120), margin: int = 8, seed: int = 0) -> np.ndarray:
@@ -55,13 +68,19 @@ def base_fill(model, x_norm, mask) -> np.ndarray:
 def gate_clips(model, x_masked, mask, y):
     """The gate on every gap of clips x_masked (N, D, T) (the masked input) with fills y (N, D, T): each gap's
     columns become ``base + w (y - base)``.  Returns (gated y, per clip a list of ``{"gap": [a, b],
-    "ood_score", "gate_weight"}``).  A clip without a whole missing frame is left as it is."""
+    "ood_score", "gate_weight"}``).
+
+    Entries missing from a frame that keeps others (joint dropout) take the pre-fill wherever their row is known
+    elsewhere in the clip: the gate is calibrated on whole missing frames only, and on the validation subjects a
+    network that helps there can be 30x worse than its pre-fill at joint recovery (docs/results/gate.md).  Rows
+    missing from the whole clip (joints a capture lacks) keep the network's fill, the only one there is."""
     from inbetween_jax.models.cae.masks import gap_ranges
     bank, gate = model.gate
-    m = np.asarray(mask, np.float32)
-    frames = (np.broadcast_to(m, np.shape(y)).max(axis=1) > 0.5).astype(np.float32)      # (N, T) 1 = some known
+    m = np.broadcast_to(np.asarray(mask, np.float32), np.shape(y))
+    frames = (m.max(axis=1) > 0.5).astype(np.float32)                       # (N, T) 1 = some known
     base = base_fill(model, x_masked, m)
-    out, info = np.array(y, np.float32, copy=True), []
+    partial = (m < 0.5) & (frames[:, None, :] > 0.5) & (m.max(axis=2, keepdims=True) > 0.5)
+    out, info = np.where(partial, base, np.asarray(y, np.float32)).astype(np.float32), []
     for i in range(len(out)):
         rows = []
         for a, b in gap_ranges(frames[i]):
