@@ -51,3 +51,17 @@ def pair_windows():
     from inbetween_jax.models.interaction import data as idata
     from inbetween_jax.models.interaction import batches as ibatches
     return ibatches.eval_windows(idata.split_pairs(idata.load_pairs("embedded"), "test"), 20, 30, 10, max_windows=6)
+
+
+@pytest.fixture(scope="session")
+def cae_fast_walk():
+    """``(run, motion)``: the shipped CAE's run and CMU 02_01 from ``../shared/data/cmu_bvh`` (a walk at 1.2 m/s,
+    120 Hz, 43 joints) on the run's skeleton at its rate, as ``inbetween infill`` prepares it."""
+    from inbetween_jax.data import Skeleton, read_bvh
+    from inbetween_jax.data.retarget import prepare
+    from inbetween_jax.shipped import shipped_run
+    path = os.path.join(SHARED_DATA, "cmu_bvh", "02_01.bvh")
+    if not os.path.exists(path):
+        pytest.skip("needs ../shared/data/cmu_bvh")
+    run = shipped_run("cae")
+    return run, prepare(read_bvh(path), path, Skeleton.from_dict(run.skeleton), run.fps).motion

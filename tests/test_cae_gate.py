@@ -1,34 +1,18 @@
 """The CAE gate's floor-speed score (models/cae/gate.floor_scorer, models/ood.FloorSpeedScore): the speed it reads
 from a gap's normalised context against the root's floor path of the same real CMU walk, its round trip through
 ``ood.npz``, and walking against standing."""
-import os
-
 import numpy as np
-import pytest
 
 from inbetween_jax.models.ood import FloorSpeedScore, Gate, load_gate, save_gate
 
-SHARED = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data")
 
-
-def _walk_and_model():
-    from inbetween_jax.data import Skeleton, read_bvh
-    from inbetween_jax.data.retarget import prepare
-    from inbetween_jax.models.cae.infer import load
-    from inbetween_jax.shipped import shipped_run
-    path = os.path.join(SHARED, "cmu_bvh", "02_01.bvh")        # walk at 1.2 m/s, 120 Hz, 43 joints
-    if not os.path.exists(path):
-        pytest.skip("needs ../shared/data/cmu_bvh")
-    run = shipped_run("cae")
-    model = load(run)
-    return model, prepare(read_bvh(path), path, Skeleton.from_dict(run.skeleton), run.fps).motion
-
-
-def test_floor_speed_is_the_roots_floor_step_beside_the_gap(tmp_path):
+def test_floor_speed_is_the_roots_floor_step_beside_the_gap(tmp_path, cae_fast_walk):
     from inbetween_jax.geometry import forward_kinematics
     from inbetween_jax.models.cae.features import body_frame_features
     from inbetween_jax.models.cae.gate import CONTEXT_FRAMES, floor_scorer, gap_context
-    model, motion = _walk_and_model()
+    from inbetween_jax.models.cae.infer import load
+    run, motion = cae_fast_walk                                # CMU 02_01: a walk at 1.2 m/s, 120 Hz
+    model = load(run)
     x = model.normalizer(body_frame_features(motion).features).T[None].astype(np.float32)     # (1, D, T)
     scorer = floor_scorer(model.normalizer, model.num_joints, c=1.0)
     root = forward_kinematics(motion.local_quats, motion.local_pos, motion.skeleton.parents)[1][:, 0][:, [0, 2]]
@@ -46,10 +30,12 @@ def test_floor_speed_is_the_roots_floor_step_beside_the_gap(tmp_path):
     np.testing.assert_allclose(back.score(ctx), scorer.score(ctx))
 
 
-def test_standing_scores_higher_than_walking():
+def test_standing_scores_higher_than_walking(cae_fast_walk):
     from inbetween_jax.models.cae.features import body_frame_features
     from inbetween_jax.models.cae.gate import floor_scorer, gap_context
-    model, motion = _walk_and_model()
+    from inbetween_jax.models.cae.infer import load
+    run, motion = cae_fast_walk
+    model = load(run)
     feats = body_frame_features(motion).features
     still = np.repeat(feats[:1], len(feats), axis=0)            # the first pose held: no root motion
     still[:, 3 * model.num_joints:] = 0.0

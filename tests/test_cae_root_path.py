@@ -1,14 +1,10 @@
 """The CAE's root path stays near its base path (model.root_bound): a fast walk at 120 Hz from the shared CMU
 files, filled over 2 s through `inbetween infill`'s path (resampled to the run's rate)."""
 import dataclasses
-import os
 
 import numpy as np
-import pytest
 
 from inbetween_jax.models.cae.features import bound_root_path, root_base_path
-
-SHARED = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data")
 
 
 def test_bound_root_path_math():
@@ -25,19 +21,12 @@ def test_bound_root_path_math():
     np.testing.assert_allclose(out[15:], off[15:])
 
 
-def test_fast_walk_fill_root_stays_near_base_path():
-    from inbetween_jax.data import Skeleton, read_bvh
-    from inbetween_jax.data.retarget import prepare
+def test_fast_walk_fill_root_stays_near_base_path(cae_fast_walk):
     from inbetween_jax.models.cae.infer import load, process_motion
-    from inbetween_jax.shipped import shipped_run
-    path = os.path.join(SHARED, "cmu_bvh", "02_01.bvh")        # walk at 1.2 m/s, 120 Hz, 43 joints
-    if not os.path.exists(path):
-        pytest.skip("needs ../shared/data/cmu_bvh")
-    run = shipped_run("cae")
+    run, motion = cae_fast_walk                                # CMU 02_01: a walk at 1.2 m/s, 120 Hz, 43 joints
     model = load(run)
     bound = model.cfg.model.root_bound
     assert bound > 0, "the shipped CAE bounds its root path"
-    motion = prepare(read_bvh(path), path, Skeleton.from_dict(run.skeleton), run.fps).motion
     t = motion.num_frames
     a, b = (t - 60) // 2, (t - 60) // 2 + 60                   # a 2-second gap in the middle
     known = np.ones(t)
