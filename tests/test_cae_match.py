@@ -161,9 +161,9 @@ def test_mirror_copy_matches_the_mirrored_motion(shipped, motions):
 
 
 def test_shipped_walk_gap_follows_a_training_walk(shipped):
-    """A validation subject's walk (never in the bank): the matched fill is used, is recorded per gap, is nearer
-    the capture than the fill without it, and lifts its feet about as often as the capture (the network's own fill
-    lifts them more often: it shuffles)."""
+    """A validation subject's walk (never in the bank): the matched fill is used, is recorded per gap and is nearer
+    the capture than the fill without it; its count of foot lift-offs is also nearer the capture's than that fill's
+    (the network's own fill lifts the feet more often here)."""
     from inbetween_jax.metrics.steps import lift_offs
     from inbetween_jax.models.cae.infer import process_motion
     assert shipped.match is not None and shipped.cfg.model.match_k > 0, "the shipped CAE matches gaps"
