@@ -37,7 +37,7 @@ def add_parser(sub) -> None:
     p = one("calibrate-gate", "calibrate a run's out-of-distribution gate on its validation split", run_calibrate)
     p.add_argument("--kind", default=None, choices=("knn", "travel"),
                    help="S-CVAE / CAE: the gate's score, the context's k-NN distance to the training split's or how "
-                        "fast the root travels (default: the model's, travel for the S-CVAE, knn for the CAE)")
+                        "fast the root travels (default travel, the one chosen on the validation subjects for both)")
     p = one("build-bank", "write a run's motion bank (training files without the validation ones)", run_bank)
     p.add_argument("--split", default="fit", choices=("fit", "train"), help="motions the bank holds (default fit)")
     p.add_argument("--mirror", action="store_true", help="S-CVAE: add each motion's mirror image to the bank")

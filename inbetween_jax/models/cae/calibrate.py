@@ -25,14 +25,15 @@ def per_window_rows(positions, names, methods, data, runs, models) -> list:
     return out
 
 
-def calibrate(run, source: str, seconds=(1, 2), clip: int = 96, positions=(-12, 0, 12), kind: str = "knn",
+def calibrate(run, source: str, seconds=(1, 2), clip: int = 96, positions=(-12, 0, 12), kind: str = "travel",
               floor_c: float = 1.0) -> dict:
     """Build the bank from the run's training split and choose the gate on its validation split (never the
     test clips): gaps of ``seconds`` centred in each validation clip and shifted by ``positions`` frames.
 
-    kind: the gate's score -- ``"knn"`` (the k-NN distance of the gap's context to the training split's,
-    :class:`~inbetween_jax.models.ood.ContextBank`) or ``"travel"`` (the root's floor speed beside the gap,
-    :func:`.gate.floor_scorer`, ``floor_c`` data units per frame).  Both are recorded per gap.
+    kind: the gate's score -- ``"travel"`` (the root's floor speed beside the gap, :func:`.gate.floor_scorer`,
+    ``floor_c`` data units per frame; the default since 2026-12-06, chosen on the validation subjects) or
+    ``"knn"`` (the k-NN distance of the gap's context to the training split's,
+    :class:`~inbetween_jax.models.ood.ContextBank`).  Both are recorded per gap.
     Returns ``{"bank" (the scorer), "gate", "summary", "records"}``; a record per clip and gap (``name`` the clip,
     ``frames``, ``score`` (the gate's), ``knn_score``, ``floor_speed``, ``ratios_at``: body-frame joint error /
     the pre-fill's at each blend weight)."""
