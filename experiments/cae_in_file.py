@@ -15,12 +15,11 @@ import json
 import time
 
 from inbetween_jax.data import load_motions
-from inbetween_jax.evaluation.worst_case import worst_case_markdown, worst_case_rows
-from inbetween_jax.models.cae.config import get_config
-from inbetween_jax.models.cae.in_file import gap_records
+from inbetween_jax.evaluation.worst_case import worst_case_markdown
+from inbetween_jax.models.cae.in_file import BASES, base_rows, gap_records
 from inbetween_jax.models.cae.infer import load
-from inbetween_jax.train.config import apply_overrides
-from inbetween_jax.train.run import _added_keys, load_run
+from inbetween_jax.shipped import config_with_overrides
+from inbetween_jax.train.run import load_run
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("run_dir")
@@ -30,16 +29,14 @@ p.add_argument("--json", default=None, help="write the rows here")
 a = p.parse_args()
 t0 = time.time()
 run = load_run(a.run_dir)
-full = _added_keys(run.config, dataclasses.asdict(get_config(run.preset)))     # switches newer than the run
-run = dataclasses.replace(run, config=apply_overrides(full, a.set))
+run = dataclasses.replace(run, config=config_with_overrides(run.model, run.config, a.set))
 model = load(run)
-motions = load_motions("cmu", a.split)
-records = gap_records(model, motions)
-rows = {key: worst_case_rows([dict(r, ratio=r[key]) for r in records], "per_window", "cmu", "cae", base, a.split)
-        for key, base in (("ratio", "the Hermite fill"), ("x_straight", "straight lines"))}
+records = gap_records(model, load_motions("cmu", a.split))
+rows = base_rows(records, "cmu", f"{a.split}, inside a file")
 matched = sum(r["matched"] for r in records)
-for key, rs in rows.items():
-    print(worst_case_markdown(rs, f"{a.run_dir} {' '.join(a.set)}: {a.split}, inside a file"))
+for _, base in BASES:
+    print(worst_case_markdown([r for r in rows if r["base"] == base], f"{a.run_dir} {' '.join(a.set)}: {a.split}, "
+                                                                       "inside a file"))
     print()
 print(f"{len(records)} gaps, {matched} matched, {time.time() - t0:.0f} s")
 if a.json:

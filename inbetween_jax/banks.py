@@ -100,7 +100,7 @@ def write_bank(run_dir: str, source: str | None = None, split: str = "fit", mirr
 
     Returns ``{"path", "bank", "bytes"}``.  Raises RunError / UserError (one line) for a folder of another model,
     an unknown switch, ``mirror`` on a non-S-CVAE run or data on another skeleton; nothing is written then."""
-    from inbetween_jax.shipped import _with_overrides
+    from inbetween_jax.shipped import config_with_overrides
     run = load_run(run_dir, need_checkpoint=False)
     if run.model not in BUILDERS:
         raise RunError(f"{run_dir}: holds a {run.model} run; banks exist for {', '.join(BUILDERS)} runs")
@@ -117,7 +117,7 @@ def write_bank(run_dir: str, source: str | None = None, split: str = "fit", mirr
     with open(path) as f:
         meta = json.load(f)
     if switches:
-        meta["config"] = _with_overrides(run.model, meta["config"], list(switches))
+        meta["config"] = config_with_overrides(run.model, meta["config"], list(switches))
     meta["bank"] = {"source": source, "split": split, "mirror": mirror, "takes": list(bank.names),
                     "frames": bank.num_frames, "switches": list(switches) or meta.get("bank", {}).get("switches", [])}
     bank_path = os.path.join(run_dir, module.BANK_FILE)

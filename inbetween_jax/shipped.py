@@ -24,7 +24,7 @@ import numpy as np
 from inbetween_jax.train.run import RUN_FILE, WEIGHTS_FILE, Run, RunError, flat_leaves, load_run
 
 __all__ = ["ENV", "INFERENCE_SWITCHES", "KEEP", "EXACT", "weights_root", "shipped_dir", "shipped_run",
-           "inference_state", "export_run", "folder_bytes"]
+           "inference_state", "export_run", "folder_bytes", "config_with_overrides"]
 
 ENV = "INBETWEEN_WEIGHTS_DIR"
 # Switches that only change inference (the trained parameters are the same either way): ``export_run(inference=)``.
@@ -144,7 +144,7 @@ def export_run(run_dir: str, step: int | None = None, out_dir: str | None = None
     with open(os.path.join(run_dir, RUN_FILE)) as f:
         meta = json.load(f)
     if inference:
-        meta["config"] = _with_overrides(run.model, meta["config"], inference)
+        meta["config"] = config_with_overrides(run.model, meta["config"], inference)
     trained = max([int(h.get("steps", 0)) for h in meta.get("history", [])] + [int(run.step)])
     meta["shipped"] = {
         "step": int(run.step), "dtype": dtype, "keep": list(KEEP[run.model]),
@@ -169,8 +169,13 @@ def export_run(run_dir: str, step: int | None = None, out_dir: str | None = None
             "checkpoint_bytes": folder_bytes(os.path.join(run.checkpoint_dir, str(run.step)))}
 
 
-def _with_overrides(model: str, config: dict, overrides) -> dict:
-    """A run's config dict with ``key=value`` overrides applied (and checked) through the model's Config."""
+def config_with_overrides(model: str, config: dict, overrides) -> dict:
+    """A run's config dict with ``key=value`` overrides applied (and checked) through the model's Config (keys
+    the run predates take the Config's defaults).
+
+    Raises:
+        RunError: an unknown key or a bad value (one line).
+    """
     from inbetween_jax.models import get_spec
     from inbetween_jax.train.config import ConfigError, apply_overrides, config_from_dict, config_to_dict
     spec = get_spec(model)

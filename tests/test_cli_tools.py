@@ -61,6 +61,18 @@ def test_argument_errors_are_one_line_before_jax(argv, says, tmp_path):
     assert not os.listdir(tmp_path)                                   # nothing written
 
 
+def test_calibrate_kind_is_refused_where_the_gate_has_one_score(cli_runs, tmp_path):
+    """``calibrate-gate --kind`` on the interaction model (one score): a one-line error before JAX, nothing written."""
+    before = sorted(os.listdir(cli_runs["interaction"]))
+    code = ("import sys; from inbetween_jax.cli import main; rc = main(sys.argv[1:]); "
+            "print('jax' in sys.modules, rc)")
+    res = subprocess.run([sys.executable, "-c", code, "calibrate-gate", cli_runs["interaction"], "--kind", "travel"],
+                         capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert res.stdout.split() == ["False", "2"], res.stdout + res.stderr
+    assert res.stderr.count("\n") == 1 and "gate has one score (no --kind)" in res.stderr, res.stderr
+    assert sorted(os.listdir(cli_runs["interaction"])) == before and not os.listdir(tmp_path)
+
+
 def test_docs_name_only_experiments_scripts_that_exist():
     """The README, the results pages and the package name experiments/ scripts that exist (the pipeline's tools
     are subcommands now)."""

@@ -15,6 +15,8 @@ and ``ood_calibration.json`` (:func:`inbetween_jax.models.ood.calibrate_run`); t
 from __future__ import annotations
 
 import argparse
+import importlib.util
+import inspect
 import json
 import os
 
@@ -66,13 +68,12 @@ def run_select(args) -> int:
 
 def run_calibrate(args) -> int:
     run, source = _run(args)
-    import importlib.util
     if importlib.util.find_spec(f"inbetween_jax.models.{run.model}.calibrate") is None:
         raise UserError(f"{args.run_dir}: the {run.model} model has no out-of-distribution gate")
     from inbetween_jax.models.ood import calibrate_run
-    if args.kind is not None and run.model not in ("scvae", "cae"):
-        raise UserError(f"{args.run_dir}: --kind is for the S-CVAE and the CAE; the {run.model} model's gate has "
-                        "one score")
+    calibrate = importlib.import_module(f"inbetween_jax.models.{run.model}.calibrate").calibrate
+    if args.kind is not None and "kind" not in inspect.signature(calibrate).parameters:
+        raise UserError(f"{args.run_dir}: the {run.model} model's gate has one score (no --kind)")
     kwargs = {} if args.kind is None else {"kind": args.kind}
     print(json.dumps(calibrate_run(args.run_dir, source, **kwargs), indent=1, default=float))
     return 0

@@ -157,18 +157,15 @@ def in_file_rows(models, runs, test_motions, source: str, quick: bool) -> list:
     matching included) on the test motions and the run's validation split of the run's own training source
     (the embedded clips are too short for 1-2 s gaps): ratio to its pre-fill ("the Hermite fill") and to straight
     lines, splits ``"test, inside a file"`` / ``"validation, inside a file"``."""
-    from inbetween_jax.evaluation.worst_case import worst_case_rows
-    from inbetween_jax.models.cae.in_file import gap_records
+    from inbetween_jax.models.cae.in_file import base_rows, gap_records
     out = []
     for v, model in models.items():
         val = _val_motions(runs[v].data.get("source") or source, run_val_split(runs[v]))
         for split, motions in (("test", test_motions), ("validation", val)):
             recs = gap_records(model, motions, limit=8 if quick else None)
             share = round(float(np.mean([r["matched"] for r in recs])), 3) if recs else 0.0
-            for key, base in (("ratio", "the Hermite fill"), ("x_straight", "straight lines")):
-                rows = worst_case_rows([dict(r, ratio=r[key]) for r in recs], "per_window", _data_name(source),
-                                       "cae", base, f"{split}, inside a file")
-                out += [dict(r, variant=v, matched_share=share) for r in rows]
+            out += [dict(r, variant=v, matched_share=share)
+                    for r in base_rows(recs, _data_name(source), f"{split}, inside a file")]
     return out
 
 

@@ -14,10 +14,11 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["gap_records", "gap_starts", "gap_positions", "SECONDS", "MARGIN_FRAMES"]
+__all__ = ["gap_records", "gap_starts", "gap_positions", "base_rows", "SECONDS", "MARGIN_FRAMES", "BASES"]
 
 SECONDS = (1, 2)          # gap lengths, as the validation choice of the match (experiments/cae_motion_match.py)
 MARGIN_FRAMES = 10        # known frames kept before the first gap and after the last
+BASES = (("ratio", "the Hermite fill"), ("x_straight", "straight lines"))   # gap_records' ratios and their bases
 
 
 def gap_starts(num_frames: int, length: int) -> range:
@@ -73,3 +74,12 @@ def gap_records(model, motions, seconds=SECONDS, limit: int | None = None) -> li
                                                   1e-9),
                             "matched": any(r.get("match_weight", 0.0) > 0.5 for r in res["gaps_ood"])})
     return out
+
+
+def base_rows(records, data: str, split: str) -> list:
+    """Worst-case rows (:func:`inbetween_jax.evaluation.worst_case.worst_case_rows`, table ``per_window``, model
+    ``cae``) of :func:`gap_records`' records against each of :data:`BASES` in turn, split ``split``."""
+    from inbetween_jax.evaluation.worst_case import worst_case_rows
+    return [row for key, base in BASES
+            for row in worst_case_rows([dict(r, ratio=r[key]) for r in records], "per_window", data, "cae", base,
+                                       split)]
