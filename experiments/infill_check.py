@@ -9,6 +9,10 @@ group, and the CAE's foot lift-offs per gap against the capture's and the straig
 step? ``metrics/steps.py``) and the share of its gaps that follow a matched training window (``model.match_k``).
 
     python experiments/infill_check.py FILE.bvh ... [--scvae-frames 20,30] [--cae-seconds 1,2] [--samples 10]
+                                       [--scale 0.01]
+
+``--scale F`` multiplies each file's lengths by F as it is read (0.01: the same capture in metres), to check that
+``infill`` converts a file's unit (:func:`inbetween_jax.data.retarget.prepare`).
 """
 import argparse
 import dataclasses
@@ -37,6 +41,7 @@ p.add_argument("--scvae-frames", default="20,30")
 p.add_argument("--cae-seconds", default="1,2")
 p.add_argument("--stride", type=int, default=45)
 p.add_argument("--samples", type=int, default=10, help="S-CVAE samples per gap (their errors averaged)")
+p.add_argument("--scale", type=float, default=1.0, help="multiply each file's lengths by this as read")
 p.add_argument("--scvae-set", action="append", default=[], metavar="model.KEY=VALUE",
                help="an inference switch of the S-CVAE for this check, e.g. model.bank_sample_weight=0.25")
 a = p.parse_args()
@@ -49,7 +54,9 @@ fk = lambda m, q, r: forward_kinematics(q, np.concatenate([r[..., None, :], np.b
     m.local_pos[0, 1:], r.shape[:-1] + m.local_pos[0, 1:].shape)], -2), m.skeleton.parents)[1]
 res = {"scvae": [], "cae": []}
 for path in a.files:
-    m = prepare(read_bvh(path), path, sm.skeleton, srun.fps).motion
+    raw = read_bvh(path)
+    raw = raw if a.scale == 1.0 else raw.scaled(a.scale)
+    m = prepare(raw, path, sm.skeleton, srun.fps).motion
     gp = fk(m, m.local_quats, m.root_pos)
     group = activity_group(path)
     for n in [int(x) for x in a.scvae_frames.split(",")]:
@@ -70,7 +77,7 @@ for path in a.files:
             i, j = np.triu_indices(len(pos), 1)
             apart = np.linalg.norm(pos[i] - pos[j], axis=-1).mean() if len(i) else 0.0
             res["scvae"].append((group, n, each.mean() / base, [each.min() / base, apart / base]))
-    cm_m = prepare(read_bvh(path), path, cm.skeleton, crun.fps).motion
+    cm_m = prepare(raw, path, cm.skeleton, crun.fps).motion
     for sec in [float(x) for x in a.cae_seconds.split(",")]:
         g = int(round(sec * crun.fps))
         for lo in range(10, cm_m.num_frames - g - 10, a.stride):

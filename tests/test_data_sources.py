@@ -324,6 +324,24 @@ def test_cmu_subject_split_holds_whole_subjects_out(cmu_env):
 
 
 @requires_cmu
+def test_activity_split_leaves_whole_activity_subjects_out(cmu_env):
+    """``fit-activities`` is ``fit-subjects`` without the subjects of sports, Indian dance and karate;
+    ``val-activities`` is every training file of those subjects; the validation subjects are untouched."""
+    from inbetween_jax.data.datasets import LEFT_OUT_ACTIVITY_SUBJECTS, is_fit_split, val_split_of
+    from inbetween_jax.data.sources import subject_of
+    fit, left, sfit = (split_files("cmu", s) for s in ("fit-activities", "val-activities", "fit-subjects"))
+    assert {subject_of(f) for f in left} == set(LEFT_OUT_ACTIVITY_SUBJECTS)
+    assert not set(fit) & set(left) and set(fit) <= set(sfit)
+    assert sorted(fit + [f for f in left if f in sfit]) == sorted(sfit)
+    assert not {subject_of(f) for f in fit} & set(LEFT_OUT_ACTIVITY_SUBJECTS)
+    assert not set(left) & set(split_files("cmu", "val-subjects"))
+    assert any("135_" in f for f in left) and any("94_" in f for f in left)
+    assert is_fit_split("fit-activities") and val_split_of("fit-activities") == "val-subjects"
+    with pytest.raises(ValueError, match="cmu source only"):
+        split_files("embedded", "val-activities")
+
+
+@requires_cmu
 def test_missing_shared_folder_is_one_line(tmp_path, monkeypatch):
     monkeypatch.setenv("INBETWEEN_SHARED_DATA", str(tmp_path / "nowhere"))
     with pytest.raises(UserError, match="set INBETWEEN_SHARED_DATA") as err:

@@ -51,8 +51,14 @@ from inbetween_jax.data.skeleton import Skeleton
 from inbetween_jax.data.windows import MotionWindows, windows_from_motions
 
 CACHE_VERSION = 2
-SPLITS = ("train", "test", "benchmark", "val", "fit", "val-subjects", "fit-subjects")
-HELD_OUT_SPLITS = {"val": "file", "fit": "file", "val-subjects": "subject", "fit-subjects": "subject"}
+SPLITS = ("train", "test", "benchmark", "val", "fit", "val-subjects", "fit-subjects", "fit-activities",
+          "val-activities")
+HELD_OUT_SPLITS = {"val": "file", "fit": "file", "val-subjects": "subject", "fit-subjects": "subject",
+                   "fit-activities": "subject"}
+# ``cmu`` only: ``fit-activities`` is ``fit-subjects`` without these subjects, whose activities no other training
+# subject performs much (sports: basketball, swordplay; Indian dance; karate), ``val-activities`` their files:
+# how a model trained without an activity does on it (checkpoints are still chosen on ``val-subjects``)
+LEFT_OUT_ACTIVITY_SUBJECTS = {"06": "sports", "94": "dance", "135": "martial arts"}
 GENERIC_CONTACT_VELFACTOR = 1.0  # squared cm per frame
 
 
@@ -76,10 +82,18 @@ def split_files(source: str, split: str) -> list:
     folder holding a single file uses it for both.  ``val`` is about 10 % of the ``train`` files (by a hash of
     their names, :func:`~inbetween_jax.data.sources.val_files`), ``fit`` the rest of ``train``.
     ``val-subjects`` / ``fit-subjects`` cut the same way by whole performers (CMU subject, LaFAN1 subject), so
-    no validation subject is trained on, as the ``cmu`` test subjects are not.
+    no validation subject is trained on, as the ``cmu`` test subjects are not.  ``fit-activities`` /
+    ``val-activities`` (``cmu`` only) leave the subjects of :data:`LEFT_OUT_ACTIVITY_SUBJECTS` out of
+    ``fit-subjects`` too / are their files.
     """
     if split not in SPLITS:
         raise ValueError(f"unknown split {split!r}; choose {', '.join(SPLITS)}")
+    if split in ("fit-activities", "val-activities"):
+        if source != sources.CMU:
+            raise ValueError(f"split {split!r} is defined for the cmu source only")
+        left = [f for f in split_files(source, "train") if sources.subject_of(f) in LEFT_OUT_ACTIVITY_SUBJECTS]
+        return left if split == "val-activities" else [f for f in split_files(source, "fit-subjects")
+                                                        if f not in left]
     if split in HELD_OUT_SPLITS:
         train = split_files(source, "train")
         val = sources.val_files(train, by=HELD_OUT_SPLITS[split])
@@ -134,7 +148,7 @@ def val_split_of(split: str) -> str:
 
 def is_fit_split(split: str) -> bool:
     """Whether a run trained on ``split`` holds validation files out (and so selects its checkpoint on them)."""
-    return split in ("fit", "fit-subjects")
+    return split in ("fit", "fit-subjects", "fit-activities")
 
 
 def window_settings(source: str, split: str, fps: float = WORKING_FPS) -> dict:
@@ -210,7 +224,7 @@ def load_dataset(source: Optional[str] = None, split: str = "train", window: Opt
 def _read_motions(source: str, split: str, fps: float, unit_scale: Optional[float]):
     """(motions at ``fps``, the resampling notice or None); one skeleton and one unit per folder."""
     files = split_files(source, split)
-    if source == sources.CMU and (split == "train" or split in HELD_OUT_SPLITS):
+    if source == sources.CMU and (split in ("train", "val-activities") or split in HELD_OUT_SPLITS):
         return sources.read_cmu_train(files, split, fps)
     motions, rates = [], Counter()
     scale0 = None

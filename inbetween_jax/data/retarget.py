@@ -6,7 +6,8 @@ checkpoint trained on the 21-joint body): :func:`match_joints` finds every check
 through unmatched joints gets their composed rotation, so world orientations are kept) and :func:`expand` puts a
 generated motion back on the user's full skeleton (matched joints take the generated rotations with that
 composition undone; the extra joints keep the user's values on known frames and are slerped across the
-generated ones).  :func:`prepare` does all of it for one input file, resampling it to the checkpoint's rate.
+generated ones).  :func:`prepare` does all of it for one input file, resampling it to the checkpoint's rate and
+converting it to the checkpoint's length unit (:meth:`Prepared.to_file_unit` converts a generated motion back).
 Pure NumPy; every problem is a one-line :class:`~inbetween_jax.errors.UserError` naming the file.
 """
 from __future__ import annotations
@@ -20,6 +21,7 @@ from inbetween_jax.errors import UserError
 __all__ = ["JointMatch", "match_joints", "restrict", "expand", "fill_unknown", "Prepared", "prepare", "to_frame"]
 
 MAX_LISTED = 8
+UNIT_TOLERANCE = 0.02     # a file whose body is within 2 % of the checkpoint's size is taken in the same unit
 
 
 @dataclasses.dataclass(frozen=True)
@@ -164,14 +166,20 @@ def expand(generated, user, match: JointMatch, known=None):
 @dataclasses.dataclass
 class Prepared:
     """One input file ready for a checkpoint: ``full`` (the file at the checkpoint's rate, user's rig),
-    ``motion`` (``full`` on the checkpoint's joints; ``full`` itself for an exact match), ``match``
-    (None for an exact match), ``ratio`` (checkpoint fps / file fps; 1.0 when not resampled), ``note``."""
+    ``motion`` (``full`` on the checkpoint's joints and in its length unit; ``full`` itself for an exact match in
+    the same unit), ``match`` (None for an exact match), ``ratio`` (checkpoint fps / file fps; 1.0 when not
+    resampled), ``note``, ``factor`` (checkpoint units per file unit; 1.0 when not converted)."""
     path: str
     full: object
     motion: object
     match: JointMatch | None
     ratio: float
     note: str | None
+    factor: float = 1.0
+
+    def to_file_unit(self, motion):
+        """A motion in the checkpoint's unit (``motion``'s, or one generated from it) -> the file's unit."""
+        return motion if self.factor == 1.0 else motion.scaled(1.0 / self.factor)
 
 
 def to_frame(prep: Prepared, frame: int, side: str | None = None) -> int:
@@ -188,7 +196,11 @@ def to_frame(prep: Prepared, frame: int, side: str | None = None) -> int:
 
 
 def prepare(motion, path: str, ckpt_skel, fps=None) -> Prepared:
-    """Resample ``motion`` to ``fps`` (None: keep) and match it to ``ckpt_skel`` (None: take as it is).
+    """Resample ``motion`` to ``fps`` (None: keep), match it to ``ckpt_skel`` (None: take as it is) and convert it
+    to ``ckpt_skel``'s length unit (:func:`~inbetween_jax.data.sources.unit_factor`: detected from the leg
+    length, e.g. the 1/128-scaled CMU salsa files or CMU's 0.0564 m unit; :attr:`Prepared.factor`).  The CAE's
+    features, the S-CVAE's root velocities and every gate's speed are in the training data's unit: a file in
+    metres would otherwise read as a body standing still.
 
     An exact match at the same rate returns ``motion`` untouched (``note`` None).  A rig that is not larger
     than the checkpoint's and does not match is refused with :func:`~inbetween_jax.data.user_input.check_skeleton`'s
@@ -204,18 +216,38 @@ def prepare(motion, path: str, ckpt_skel, fps=None) -> Prepared:
             parts.append(f"{src:g} fps resampled to the checkpoint's {float(fps):g} fps")
     match, out = None, full
     if ckpt_skel is not None and not full.skeleton.same_topology(ckpt_skel):
+        from inbetween_jax.data.rig_transfer import on_31_joint_rig, takes_31_joint_rig, transfer_mb31
         try:
             match = match_joints(full.skeleton, ckpt_skel, path)
         except UserError:
-            if full.skeleton.num_joints <= ckpt_skel.num_joints:     # not a larger rig: say how it differs
+            if on_31_joint_rig(full.skeleton.names) and takes_31_joint_rig(ckpt_skel):
+                # CMU's 31-joint rig: put on the checkpoint's body as its training captures were
+                full = out = transfer_mb31(full, ckpt_skel, drop_tpose=False)
+                match = None
+                parts.append("the 31-joint CMU rig put on the checkpoint's body by bone directions (as its "
+                             "training captures were); the output is on that body")
+            elif full.skeleton.num_joints <= ckpt_skel.num_joints:     # not a larger rig: say how it differs
                 from inbetween_jax.data.user_input import check_skeleton
                 check_skeleton(full.skeleton, path, ckpt_skel)
-            raise
-        if match.identity:
+                raise
+            else:
+                raise
+        if match is None:
+            pass
+        elif match.identity:
             match = None
         else:
             out = restrict(full, match, ckpt_skel)
             n = len(match.extra)
             parts.append(f"{n} extra joint{'s' if n != 1 else ''} follow{'s' if n == 1 else ''} by interpolation")
+    factor = 1.0
+    if ckpt_skel is not None:
+        from inbetween_jax.data.sources import unit_factor
+        factor = float(unit_factor(out.skeleton, ckpt_skel))
+        if abs(factor - 1.0) > UNIT_TOLERANCE:
+            out = out.scaled(factor)
+            parts.append(f"positions scaled by {factor:.4g} to the checkpoint's unit (and back on output)")
+        else:
+            factor = 1.0
     note = f"{path}: {'; '.join(parts)}" if parts else None
-    return Prepared(path, full, out, match, ratio, note)
+    return Prepared(path, full, out, match, ratio, note, factor)

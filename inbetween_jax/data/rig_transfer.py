@@ -17,7 +17,8 @@ import numpy as np
 
 from inbetween_jax.errors import UserError
 
-__all__ = ["MB_UNIT_CM", "MB31_JOINTS", "ASF31_TO_MB31", "SWING", "FRAMED", "on_31_joint_rig", "transfer_mb31"]
+__all__ = ["MB_UNIT_CM", "MB31_JOINTS", "ASF31_TO_MB31", "SWING", "FRAMED", "on_31_joint_rig", "takes_31_joint_rig",
+           "transfer_mb31"]
 
 MB_UNIT_CM = 5.6444
 TPOSE_TOL = 0.03            # max |1 - |w|| of the non-root rotations for frame 0 to count as the rest T-pose
@@ -63,6 +64,18 @@ def on_31_joint_rig(names) -> bool:
     return set(MB31_JOINTS) <= names
 
 
+def takes_31_joint_rig(skeleton) -> bool:
+    """Whether :func:`transfer_mb31` can put a 31-joint capture on ``skeleton`` (every joint it sets, and a child
+    or an end site for each swung bone)."""
+    names = set(skeleton.names)
+    ends = {p for p, _ in skeleton.end_sites}
+    need = set(SWING) | set(FRAMED) | {n for (up, _), (side, _) in FRAMED.values() for n in (up,) + side}
+    if not need <= names:
+        return False
+    idx = {n: i for i, n in enumerate(skeleton.names)}
+    return all(c in names or idx[j] in ends for j, (c, _) in SWING.items())
+
+
 def _unit(v):
     return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-9)
 
@@ -74,11 +87,13 @@ def _frame(up, side):
     return np.stack([e1, e2, np.cross(e1, e2)], -1)
 
 
-def transfer_mb31(capture, template):
+def transfer_mb31(capture, template, drop_tpose: bool = True):
     """capture: a :class:`~inbetween_jax.data.bvh.Motion` on the 31-joint rig (``Hips``, ``LeftUpLeg``, ... or
-    the ASF names ``hip``, ``lfemur``, ...); template: one on the 43-joint body (``hip``, ``abdomen``, ...).
-    Returns the capture's frames, but a leading T-pose frame, as a Motion on the template's skeleton, positions
-    in the template's unit.
+    the ASF names ``hip``, ``lfemur``, ...); template: one on the 43-joint body (``hip``, ``abdomen``, ...), or its
+    :class:`~inbetween_jax.data.bvh.Skeleton`, or a subset of it holding every joint :data:`SWING` and
+    :data:`FRAMED` set (a checkpoint's 21-joint body: bones without their child take the end site's direction).
+    Returns the capture's frames, but a leading T-pose frame (kept with ``drop_tpose=False``, so frame numbers
+    stay the file's), as a Motion on the template's skeleton, positions in the template's unit.
 
     Raises UserError (one line, naming the file) when the capture lacks a joint of :data:`MB31_JOINTS`."""
     from inbetween_jax.data.bvh import Motion
@@ -89,11 +104,11 @@ def transfer_mb31(capture, template):
     from inbetween_jax.geometry.kinematics import forward_kinematics, inverse_kinematics
     from inbetween_jax.geometry.quaternion import (quat_between, quat_fix_sign_np, quat_from_matrix, quat_mul,
                                                    quat_rotate)
-    skel = template.skeleton
+    skel = getattr(template, "skeleton", template)
     names, parents = list(skel.names), skel.parents
     idx = {n: i for i, n in enumerate(names)}
     q0 = np.asarray(capture.local_quats[0, 1:, 0], np.float64)
-    first = 1 if capture.num_frames > 1 and float(np.abs(1.0 - np.abs(q0)).max()) < TPOSE_TOL else 0
+    first = 1 if drop_tpose and capture.num_frames > 1 and float(np.abs(1.0 - np.abs(q0)).max()) < TPOSE_TOL else 0
     cap = capture.global_positions()[first:] * MB_UNIT_CM                 # (T, Jc, 3) cm
     cidx = {n: i for i, n in enumerate(cnames)}
     t_len, j_len = cap.shape[0], len(names)

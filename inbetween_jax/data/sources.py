@@ -155,6 +155,13 @@ def _stem(path: str) -> str:
     return os.path.splitext(os.path.basename(path))[0]
 
 
+def subject_of(path: str) -> str | None:
+    """The CMU subject of a trial file ``NN_MM...`` (``"135"``, ``"06"``), None for other names (a salsa take's
+    is its dancer's, 60 or 61)."""
+    t = _TRIAL.match(_stem(path))
+    return t.group(1) if t else None
+
+
 def _val_group(path: str, by: str = "file") -> str:
     """What the validation hash is taken of.  ``by="file"``: the file name, or ``salsa_NN`` for both dancers of
     a take.  ``by="subject"``: the performer -- the CMU subject of a trial name ``NN_MM`` (``salsa`` for every

@@ -5,7 +5,8 @@ cubic Hermite for ``model.fill=hermite``), and over straight lines between the g
 gap.  The bench writes these as ``per_window`` rows of its own split names (``"test, inside a file"`` /
 ``"validation, inside a file"``).
 
-    gap_records(model, motions, seconds=(1, 2)) -> list of {"name", "frames", "ratio", "x_straight", "matched"}
+    gap_records(model, motions, seconds=(1, 2)) -> list of {"name", "frames", "ratio", "x_straight", "matched",
+                                                              "ood_score", "gate_weight"}
 
 The experiments that score the CAE's gaps inside files (``experiments/cae_*.py``) take the same gaps
 (:func:`gap_starts`) and put fills back into global positions the same way (:func:`gap_positions`).
@@ -72,7 +73,9 @@ def gap_records(model, motions, seconds=SECONDS, limit: int | None = None) -> li
                 out.append({"name": str(m.source), "frames": g, "ratio": e / max(err(base), 1e-9),
                             "x_straight": e / max(float(np.linalg.norm(straight - gp[lo:lo + g], axis=-1).mean()),
                                                   1e-9),
-                            "matched": any(r.get("match_weight", 0.0) > 0.5 for r in res["gaps_ood"])})
+                            "matched": any(r.get("match_weight", 0.0) > 0.5 for r in res["gaps_ood"]),
+                            **{k: float(res["gaps_ood"][0][k]) for k in ("ood_score", "gate_weight")
+                               if res["gaps_ood"] and k in res["gaps_ood"][0]}})
     return out
 
 

@@ -247,11 +247,12 @@ def infill(args, run: Run) -> InfillResult:
     res = process_motion(model, motion, gaps, seed=args.seed)
     finite_or_fail(run.run_dir, res["positions"], res["motion"].local_quats, res["motion"].local_pos)
     stem = os.path.splitext(os.path.basename(args.bvh))[0]
-    pos = res["positions"]
+    pos = res["positions"] / prep.factor                              # back in the file's unit
     gen = np.zeros(motion.num_frames, bool)
     for a, b in gaps:
         gen[a:b] = True
-    out = res["motion"] if prep.match is None else expand(res["motion"], prep.full, prep.match, ~gen)
+    filled = prep.to_file_unit(res["motion"])
+    out = filled if prep.match is None else expand(filled, prep.full, prep.match, ~gen)
     summary = {"input": args.bvh, "gaps": file_gaps, "frames": motion.num_frames, "step": model.step,
                "error_cm_mean": res["error_cm"][0], "fk_gap_cm": res["fk_gap_cm"],
                "refit_frames": int(np.sum(res["frames"]))}

@@ -234,20 +234,13 @@ def infill(args, run: Run) -> InfillResult:
 
 def _on_run_rig(motion, path: str, skel, fps, notes: list):
     """A user's file on the run's joints, frame rate and unit: ``(Prepared, factor)`` (run units per file unit).
-    Larger rigs are matched by joint name (:func:`inbetween_jax.data.retarget.prepare`); another unit (e.g. the
-    1/128-scaled CMU salsa files) is detected from the leg length and converted."""
+    Larger rigs are matched by joint name and another unit (e.g. the 1/128-scaled CMU salsa files) is detected
+    from the leg length and converted (:func:`inbetween_jax.data.retarget.prepare`)."""
     from inbetween_jax.data.retarget import prepare
-    from inbetween_jax.data.sources import unit_factor
     prep = prepare(motion, path, skel, fps)
     if prep.note:
         notes.append(prep.note)
-    factor = 1.0 if skel is None else float(unit_factor(prep.motion.skeleton, skel))
-    if abs(factor - 1.0) > 0.02:
-        prep = dataclasses.replace(prep, motion=prep.motion.scaled(factor))
-        notes.append(f"{path}: positions scaled by {factor:.4g} to the checkpoint's unit (and back on output)")
-    else:
-        factor = 1.0
-    return prep, factor
+    return prep, prep.factor
 
 
 def _on_user_rig(motion, prep, start: int, kprep, key_frame: int, factor: float):

@@ -400,7 +400,7 @@ def infill(args, run):
     for name, q, r in zip(sample_names(args.samples), res["q"], res["r"]):
         pos = base_pos.copy()
         pos[:, 0] = r
-        out = dataclasses.replace(sm, local_quats=q, local_pos=pos)
+        out = ps.to_file_unit(dataclasses.replace(sm, local_quats=q, local_pos=pos))
         samples.append((name, [out if keys is None else expand(out, keys, ps.match)], None))
     from inbetween_jax.evaluation.samples import sample_spread
     spread = sample_spread([m[0] for _, m, _ in samples])
