@@ -4,7 +4,8 @@ and with which damping (``model.context_damping``)?
 
 Gaps every ``--stride`` frames (from frame ``--first``, default 3: CMU files often begin with capture start-up
 frames; the run's caps on the neighbours' velocity apply unless ``--no-cap``) in the ``cmu``
-source's validation subjects (``--split val-subjects``, the default: choose here) or the test subjects (``--split
+source's validation subjects (``--split val-subjects``, the default: choose here), the subjects a run trained on
+``train.split=fit-activities`` never saw (``--split val-activities``) or the test subjects (``--split
 test``, the embedded 13 / 14 files: look once, at the end), read as training reads them (the 21-joint body, 30
 fps).  Per gap, one sample (the deterministic fill) through :func:`~inbetween_jax.models.scvae.infer.infill_between`
 with the frames beside the keyframes, as ``inbetween infill`` passes them.  Candidates, each as mean joint position
@@ -33,6 +34,7 @@ import os
 import numpy as np
 
 from inbetween_jax.data.activities import activity_group
+from inbetween_jax.data.datasets import split_files
 from inbetween_jax.data.files import embedded_files
 from inbetween_jax.data.sources import cmu_train_plan, read_cmu_train, val_files
 from inbetween_jax.evaluation.worst_case import summarise
@@ -45,7 +47,8 @@ from inbetween_jax.train.config import apply_overrides
 from inbetween_jax.train.run import load_run
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-p.add_argument("--split", default="val-subjects", choices=["val-subjects", "test"])
+p.add_argument("--split", default="val-subjects", choices=["val-subjects", "val-activities", "test"],
+               help="val-activities: the subjects a run trained on fit-activities never saw (sports, dance, karate)")
 p.add_argument("--run", default=None, help="run folder (default: the shipped weights)")
 p.add_argument("--frames", default="10,30,50")
 p.add_argument("--damping", default="0,0.05,0.1,0.15,0.2")
@@ -81,7 +84,8 @@ else:
                 **{f"fill (hermite d{d:g})": switched(context_base=True, context_damping=d) for d in dampings}}
     num_samples = 1
 fa = tuple(trained.extra.get("forward_axis") or trained.skeleton.forward_axis())
-files = val_files(cmu_train_plan()[0], by="subject") if a.split == "val-subjects" else embedded_files("test")
+files = (val_files(cmu_train_plan()[0], by="subject") if a.split == "val-subjects" else embedded_files("test")
+         if a.split == "test" else split_files("cmu", a.split))
 motions = read_cmu_train(files, a.split, run.fps)[0]
 
 

@@ -61,9 +61,9 @@ BUILDERS = {"interaction": interaction_bank, "scvae": scvae_bank, "cae": scvae_b
 def run_fit_split(run, split: str) -> str:
     """``split`` for a bank of ``run``: ``"fit"`` means the run's own fit split, so a run trained on
     ``train.split=fit-subjects`` gets a bank without its validation subjects (``fit`` alone holds out files by
-    name, and would put those subjects' other files in the bank)."""
+    name, and would put those subjects' other files in the bank; ``fit-activities`` likewise)."""
     own = str(((run.config or {}).get("train") or {}).get("split", "train"))
-    return "fit-subjects" if split == "fit" and own == "fit-subjects" else split
+    return own if split == "fit" and own in ("fit-subjects", "fit-activities") else split
 
 
 def _shared_copy(model: str, run_dir: str, bank_path: str) -> str | None:

@@ -339,6 +339,11 @@ def test_activity_split_leaves_whole_activity_subjects_out(cmu_env):
     assert is_fit_split("fit-activities") and val_split_of("fit-activities") == "val-subjects"
     with pytest.raises(ValueError, match="cmu source only"):
         split_files("embedded", "val-activities")
+    from types import SimpleNamespace
+    from inbetween_jax.banks import run_fit_split               # a run's bank leaves the same subjects out
+    for own in ("fit-activities", "fit-subjects"):
+        assert run_fit_split(SimpleNamespace(config={"train": {"split": own}}), "fit") == own
+    assert run_fit_split(SimpleNamespace(config={"train": {"split": "fit"}}), "fit") == "fit"
 
 
 @requires_cmu

@@ -226,17 +226,14 @@ def prepare(motion, path: str, ckpt_skel, fps=None) -> Prepared:
                 match = None
                 parts.append("the 31-joint CMU rig put on the checkpoint's body by bone directions (as its "
                              "training captures were); the output is on that body")
-            elif full.skeleton.num_joints <= ckpt_skel.num_joints:     # not a larger rig: say how it differs
-                from inbetween_jax.data.user_input import check_skeleton
-                check_skeleton(full.skeleton, path, ckpt_skel)
-                raise
             else:
+                if full.skeleton.num_joints <= ckpt_skel.num_joints:     # not a larger rig: say how it differs
+                    from inbetween_jax.data.user_input import check_skeleton
+                    check_skeleton(full.skeleton, path, ckpt_skel)
                 raise
-        if match is None:
-            pass
-        elif match.identity:
+        if match is not None and match.identity:
             match = None
-        else:
+        elif match is not None:
             out = restrict(full, match, ckpt_skel)
             n = len(match.extra)
             parts.append(f"{n} extra joint{'s' if n != 1 else ''} follow{'s' if n == 1 else ''} by interpolation")
