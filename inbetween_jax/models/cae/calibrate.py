@@ -26,7 +26,7 @@ def per_window_rows(positions, names, methods, data, runs, models) -> list:
 
 
 def calibrate(run, source: str, seconds=(1, 2), clip: int = 96, positions=(-12, 0, 12), kind: str = "travel",
-              floor_c: float = 1.0) -> dict:
+              floor_c: float = 1.0, split: str | None = None) -> dict:
     """Build the bank from the run's training split and choose the gate on its validation split (never the
     test clips): gaps of ``seconds`` centred in each validation clip and shifted by ``positions`` frames.
 
@@ -34,6 +34,8 @@ def calibrate(run, source: str, seconds=(1, 2), clip: int = 96, positions=(-12, 
     ``floor_c`` data units per frame; the default since 2026-12-06, chosen on the validation subjects) or
     ``"knn"`` (the k-NN distance of the gap's context to the training split's,
     :class:`~inbetween_jax.models.ood.ContextBank`).  Both are recorded per gap.
+    split: the motions scored (default: the validation split of the run's training split; another, e.g.
+    ``val-activities``, only to study the records: the gate is chosen on those motions).
     Returns ``{"bank" (the scorer), "gate", "summary", "records"}``; a record per clip and gap (``name`` the clip,
     ``frames``, ``score`` (the gate's), ``knn_score``, ``floor_speed``, ``ratios_at``: body-frame joint error /
     the pre-fill's at each blend weight)."""
@@ -47,12 +49,12 @@ def calibrate(run, source: str, seconds=(1, 2), clip: int = 96, positions=(-12, 
     from inbetween_jax.models.cae.train import load_data
     from inbetween_jax.models.ood import BLEND_WEIGHTS, build_bank, calibrate_gate
     model = load(run)
-    split = run.config.get("train", {}).get("split", "fit")
+    scored, split = split, run.config.get("train", {}).get("split", "fit")
     if kind not in ("knn", "travel"):
         raise ValueError(f"unknown gate score {kind!r}: knn or travel")
     bank = build_bank(training_contexts(load_data(model.cfg, source, split).bank))
     floor = floor_scorer(model.normalizer, model.num_joints, floor_c)
-    motions = load_motions(source, val_split_of(split))
+    motions = load_motions(source, val_split_of(split) if scored is None else scored)
     x = proto.test_clips(motions, model.normalizer, clip, clip // 2)
     names = [short_name(m.source) for m in motions for s in range(0, m.num_frames - clip + 1, clip // 2)]
     truth = body_positions(x, model.normalizer, model.num_joints)

@@ -6,7 +6,7 @@ import numpy as np
 
 
 def calibrate(run, source: str, samples: int = 4, lengths=(10, 30, 50), n_past: int = 10, kind: str = "travel",
-              travel_c: float = 1.0) -> dict:
+              travel_c: float = 1.0, in_clip: bool = True) -> dict:
     """Choose the gate on the validation split of the run's training data (never the test windows).
 
     kind: the gate's score -- ``"travel"`` (:class:`~inbetween_jax.models.ood.TravelScore`, ``travel_c`` data
@@ -15,7 +15,11 @@ def calibrate(run, source: str, samples: int = 4, lengths=(10, 30, 50), n_past: 
     recorded per window (``score``: the gate's, ``knn_score``).  Returns ``{"bank" (the scorer), "gate",
     "summary", "records"}``; records: one dict per validation window and length (``name``, ``frames``,
     ``score``, ``knn_score``, ``ratios_at`` (error / Slerp's at each of
-    :data:`~inbetween_jax.models.ood.BLEND_WEIGHTS`), ``base_cm``)."""
+    :data:`~inbetween_jax.models.ood.BLEND_WEIGHTS`), ``base_cm``).
+
+    in_clip: also choose the thresholds used inside a clip (:func:`~.gate.context_gate`) by the same rule, on
+    :func:`in_clip_records` of the same validation motions (``arrays``: :data:`~.gate.CONTEXT_GATE_KEYS`;
+    ``context_records``; the summary's ``context_*`` numbers)."""
     from inbetween_jax.data import load_dataset
     from inbetween_jax.data.datasets import val_split_of
     from inbetween_jax.models.ood import BLEND_WEIGHTS, TravelScore, build_bank, calibrate_gate
@@ -45,5 +49,95 @@ def calibrate(run, source: str, samples: int = 4, lengths=(10, 30, 50), n_past: 
     from inbetween_jax.data.activities import activity_group
     gate, summary = calibrate_gate([r["score"] for r in records], [r["ratios_at"] for r in records],
                                    groups=[f"{activity_group(r['name'])}/{r['frames']}" for r in records])
-    return {"bank": travel if kind == "travel" else bank, "gate": gate,
-            "summary": dict(summary, lo=gate.lo, hi=gate.hi, kind=kind), "records": records}
+    out = {"bank": travel if kind == "travel" else bank, "gate": gate,
+           "summary": dict(summary, lo=gate.lo, hi=gate.hi, kind=kind), "records": records}
+    if in_clip:
+        inside = calibrate_in_clip(run, source, lengths, trained=trained, scorer=out["bank"], knn=bank)
+        out["summary"].update(inside.pop("summary"))
+        out.update(inside)
+    return out
+
+
+def calibrate_in_clip(run, source: str, lengths=(10, 30, 50), trained=None, scorer=None, knn=None) -> dict:
+    """The gate's thresholds inside a clip (:func:`~.gate.context_gate`), chosen by
+    :func:`~inbetween_jax.models.ood.calibrate_gate`'s rule on :func:`in_clip_records` of the run's validation
+    split, with ``scorer`` (default: the travel score).  Returns ``{"arrays": {CONTEXT_GATE_KEYS: (lo, hi)},
+    "summary": {"context_*": ...}, "context_records"}``."""
+    from inbetween_jax.data import load_motions
+    from inbetween_jax.data.activities import activity_group
+    from inbetween_jax.data.datasets import val_split_of
+    from inbetween_jax.models.ood import calibrate_gate
+    from inbetween_jax.models.scvae import infer
+    from inbetween_jax.models.scvae.gate import CONTEXT_GATE_KEYS
+    trained = trained or infer.load(run)
+    fa = tuple(trained.extra.get("forward_axis") or trained.skeleton.forward_axis())
+    split = run.config.get("train", {}).get("split", "fit")
+    inside = in_clip_records(trained, load_motions(source, val_split_of(split)), fa, lengths, scorer=scorer, knn=knn)
+    gate, summary = calibrate_gate([r["score"] for r in inside], [r["ratios_at"] for r in inside],
+                                   groups=[f"{activity_group(r['name'])}/{r['frames']}" for r in inside])
+    return {"arrays": dict(zip(CONTEXT_GATE_KEYS, (gate.lo, gate.hi))), "context_records": inside,
+            "summary": dict({f"context_{k}": v for k, v in summary.items()}, context_lo=gate.lo, context_hi=gate.hi)}
+
+
+def in_clip_records(trained, motions, forward_axis, lengths=(10, 30, 50), stride: int = 45, first: int = 3,
+                    scorer=None, knn=None) -> list:
+    """Gaps inside clips, filled as ``inbetween infill`` fills them (the frames beside the keyframes passed, the
+    fill onto the Hermite path through them: ``model.context_base`` switched on here): every ``stride`` frames
+    from frame ``first`` of each motion, ``lengths`` frames.  A record per gap: ``name`` (``file:frame``, the file
+    name only), ``frames``, ``score`` (``scorer``'s, default the travel score) and ``knn_score`` (``knn``'s, a
+    :class:`~inbetween_jax.models.ood.ContextBank`, when given) of its keyframe context, ``ratios_at`` (joint
+    error over the Hermite path's at each learned-fill weight of :data:`~inbetween_jax.models.ood.BLEND_WEIGHTS`)
+    and ``base_x_slerp`` (the path's error over Slerp's)."""
+    import dataclasses
+    import os
+    from inbetween_jax.geometry import forward_kinematics
+    from inbetween_jax.models.ood import BLEND_WEIGHTS, Gate, TravelScore
+    from inbetween_jax.models.scvae import infer
+    from inbetween_jax.models.scvae.context import AFTER, BEFORE
+    from inbetween_jax.models.scvae.gate import keyframe_context, slerp_base
+    cfg = trained.cfg
+    cfg = dataclasses.replace(cfg, model=dataclasses.replace(cfg.model, context_base=True, ood_gate=True,
+                                                             context_gate=False))
+    scorer = scorer or TravelScore(trained.skeleton.num_joints)
+    at = {w: dataclasses.replace(trained, cfg=cfg, gate=(_Zero(), Gate(w - 1.0, w))) for w in BLEND_WEIGHTS}
+
+    def fk(m, q, r):
+        lp = np.broadcast_to(m.local_pos[0], r.shape[:-1] + m.local_pos[0].shape).copy()
+        lp[..., 0, :] = r
+        return forward_kinematics(q, lp, m.skeleton.parents)[1]
+
+    records = []
+    for m in motions:
+        gp = fk(m, m.local_quats, m.root_pos)
+        for n in lengths:
+            for k0 in range(first, m.num_frames - n - 2, stride):
+                k1 = k0 + n + 1
+                s = {"q": m.local_quats[k0], "r": m.root_pos[k0], "c": np.zeros(4)}
+                e = {"q": m.local_quats[k1], "r": m.root_pos[k1], "c": np.zeros(4)}
+                for d, ks, fr in ((s, BEFORE, (k0 - 1, k0 - 2)), (e, AFTER, (k1 + 1, k1 + 2))):
+                    if 0 <= min(fr) and max(fr) < m.num_frames:
+                        d.update(zip(ks, (m.local_quats[fr[0]], m.root_pos[fr[0]], m.local_quats[fr[1]],
+                                          m.root_pos[fr[1]])))
+                err = {}
+                for w, t in at.items():
+                    out = infer.infill_between(t, m.skeleton, s, e, n, 1, 0, forward_axis)
+                    err[w] = float(np.linalg.norm(fk(m, out["q"][0, 1:-1], out["r"][0, 1:-1]) - gp[k0 + 1:k1],
+                                                  axis=-1).mean())
+                keys = [x[k][None] for x, k in ((m.local_quats, k0), (m.root_pos, k0), (m.local_quats, k1),
+                                                (m.root_pos, k1))]
+                sq, sr = slerp_base(*keys, n)
+                slerp = float(np.linalg.norm(fk(m, sq[0], sr[0]) - gp[k0 + 1:k1], axis=-1).mean())
+                ctx = keyframe_context(*keys, n, m.skeleton, forward_axis)
+                base = max(err[0.0], 1e-9)
+                records.append({"name": f"{os.path.basename(str(m.source))}:{k0}", "frames": n, "score": float(scorer.score(ctx)[0]),
+                                **({"knn_score": float(knn.score(ctx)[0])} if knn is not None else {}),
+                                "ratios_at": [err[w] / base for w in BLEND_WEIGHTS],
+                                "base_x_slerp": base / max(slerp, 1e-9)})
+    return records
+
+
+class _Zero:
+    """A scorer giving every context 0: with ``Gate(w - 1, w)`` the learned fill is kept at weight w."""
+
+    def score(self, desc):
+        return np.zeros(len(desc))

@@ -136,6 +136,8 @@ class ModelConfig:
     timing_spread_in_clip: float = 0.0  # ... the spread inside a clip (frames beside the keyframes known); 0: off
     ood_gate: bool = False         # inference: blend toward Slerp / lerp as the keyframes leave the training motion
     context_base: bool = False     # inference: frames beside the keyframes known -> onto the Hermite path (.context)
+    context_gate: bool = True      # ... and there the gate's own thresholds, calibrated against that path (ood.npz's
+                                   # context_gate_lo / _hi, when it holds them; else the two-keyframe gate's)
     context_damping: float = 0.1   # ... its velocity terms faded by exp(-context_damping * t) (per frame)
     context_max_turn: float = 0.35  # ... the neighbours' joint turn capped at this many radians per frame (0: no cap)
     context_max_step: float = 0.35  # ... and their root step at this many leg lengths per frame (0: no cap)

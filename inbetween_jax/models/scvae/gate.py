@@ -7,12 +7,19 @@ positions of both poses (2 J 3 numbers, so the root's displacement between the k
 number of frames between them / 30.  The bank holds the same for keyframe pairs of the training windows, at
 random lengths.  ``ood.npz`` in the run (or shipped) folder holds bank and gate; ``model.ood_gate`` switches the
 blend on.
+
+Inside a clip (``model.context_base``: the frames beside the keyframes known) the fill's base is the Hermite path
+through them, much closer to the motion than Slerp.  There the gate reads the same score with its own thresholds
+(:func:`context_gate`), calibrated against that path (:func:`~.calibrate.in_clip_records`).
 """
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["keyframe_context", "training_contexts", "gate_blend", "slerp_base", "gate_pairs", "gate_windows"]
+__all__ = ["keyframe_context", "training_contexts", "gate_blend", "slerp_base", "gate_pairs", "gate_windows",
+           "CONTEXT_GATE_KEYS", "context_gate"]
+
+CONTEXT_GATE_KEYS = ("context_gate_lo", "context_gate_hi")   # ood.npz: the thresholds used inside a clip
 
 
 def keyframe_context(q0, r0, q1, r1, n_frames, skeleton, forward_axis) -> np.ndarray:
@@ -78,3 +85,17 @@ def gate_windows(gate, windows, k0: int, k1: int, q, r, forward_axis=None):
     fa = windows.skeleton.forward_axis() if forward_axis is None else forward_axis
     return gate_pairs(gate, windows.local_quats[:, k0], windows.root_pos[:, k0], windows.local_quats[:, k1],
                       windows.root_pos[:, k1], windows.skeleton, fa, q, r)
+
+
+def context_gate(run_dir: str):
+    """The :class:`~inbetween_jax.models.ood.Gate` of fills inside a clip, from ``run_dir/ood.npz``'s
+    :data:`CONTEXT_GATE_KEYS`, or None when it holds none (a gate calibrated before 2026-12-06)."""
+    import os
+    from inbetween_jax.models.ood import OOD_FILE, Gate
+    path = os.path.join(run_dir, OOD_FILE)
+    if not os.path.exists(path):
+        return None
+    with np.load(path) as z:
+        if not all(k in z.files for k in CONTEXT_GATE_KEYS):
+            return None
+        return Gate(float(z[CONTEXT_GATE_KEYS[0]]), float(z[CONTEXT_GATE_KEYS[1]]))

@@ -44,6 +44,7 @@ class Trained:
     extra: dict
     bank: TransitionBank | None = None      # transition bank (``bank.npz`` in the run folder) when the config uses one
     gate: tuple | None = None               # (ContextBank, Gate) of ``ood.npz`` when ``model.ood_gate`` is on
+    context_gate: object | None = None      # the Gate used inside a clip (``model.context_gate``, .gate.context_gate)
 
     @property
     def params(self) -> dict:
@@ -80,8 +81,10 @@ def load(run) -> Trained:
     state = restore_state(run, jax.eval_shape(init_fn, jax.random.key(0)))
     from inbetween_jax.models.ood import run_gate
     gate = run_gate(run.run_dir, cfg.model.ood_gate)
+    from inbetween_jax.models.scvae.gate import context_gate
+    inside = context_gate(run.run_dir) if gate is not None and cfg.model.context_gate else None
     return Trained(cfg, state, int(run.step), skeleton, dict(run.extra, num_joints=int(num_joints)),
-                   load_bank(run.run_dir, cfg.model, int(num_joints)), gate)
+                   load_bank(run.run_dir, cfg.model, int(num_joints)), gate, inside)
 
 
 def load_bank(run_dir: str, model_cfg, num_joints: int) -> TransitionBank | None:
@@ -278,13 +281,16 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
         mid_q, mid_r = blend(q[:, None, 1:-1], r[:, None, 1:-1], kq, kr, m.bank_weight)
         q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
     gated = {}
+    ctx = context_kind(start, end) if m.context_base else "none"
     if trained.gate is not None and m.ood_gate:   # toward Slerp / lerp as the keyframes leave the training motion
         from inbetween_jax.models.scvae.gate import gate_pairs
-        mid_q, mid_r, score, weight = gate_pairs(trained.gate, qs[None], roots[:1], qe[None], roots[1:], skeleton, fa,
+        gate = trained.gate
+        if ctx != "none" and trained.context_gate is not None and m.context_gate:   # thresholds for that base
+            gate = (gate[0], trained.context_gate)
+        mid_q, mid_r, score, weight = gate_pairs(gate, qs[None], roots[:1], qe[None], roots[1:], skeleton, fa,
                                                  q[:, None, 1:-1], r[:, None, 1:-1])
         q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
         gated = {"ood_score": float(score[0]), "gate_weight": float(weight[0])}
-    ctx = context_kind(start, end) if m.context_base else "none"
     if ctx != "none":                # the departure from Slerp / lerp onto the Hermite path through the neighbours
         from inbetween_jax.models.scvae.gate import slerp_base
         before, after = known_sides(start, end)
