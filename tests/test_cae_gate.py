@@ -44,3 +44,36 @@ def test_standing_scores_higher_than_walking(cae_fast_walk):
     walk, stand = scorer.score(gap_context(walk_x, 40, 70)), scorer.score(gap_context(still_x, 40, 70))
     np.testing.assert_allclose(stand, [1.0], atol=1e-4)
     assert walk[0] < 0.5
+
+
+def test_knn_cap_thresholds_are_the_validation_gaps_quantiles():
+    from inbetween_jax.models.cae.gate import knn_cap_thresholds
+    scores = np.arange(1, 101) / 100.0                         # pure math: 0.01 .. 1.00
+    g = knn_cap_thresholds(scores)
+    assert g.lo == np.quantile(scores, 0.9) and g.hi == 1.0
+    assert g.weight(0.5) == 1.0 and g.weight(1.0) == 0.0 and 0.0 < g.weight(0.95) < 1.0
+
+
+def test_knn_cap_takes_the_smaller_weight_and_is_read_from_the_shipped_gate(tmp_path, cae_fast_walk):
+    """The shipped CAE's ood.npz holds the cap; a walk whose speed gate keeps the network keeps it under an open
+    cap and loses it under a shut one (the gap becomes the pre-fill); a folder without the cap gives None."""
+    from inbetween_jax.models.cae.features import body_frame_features
+    from inbetween_jax.models.cae.gate import base_fill, gate_clips, knn_cap
+    from inbetween_jax.models.cae.infer import load
+    from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
+    run, motion = cae_fast_walk
+    model = load(run)
+    assert model.knn_cap is not None and knn_cap(str(tmp_path)) is None
+    fm = gap_frames(motion.num_frames, [(40, 70)])
+    x = model.normalizer(body_frame_features(motion, known=fm > 0.5).features).T[None].astype(np.float32)
+    mask = frame_mask_image(fm, model.num_joints)[None]
+    y = model.predict(x * mask, mask)
+    base = base_fill(model, x * mask, mask)
+    model.knn_cap = (model.knn_cap[0], Gate(1e6, 2e6))         # open whatever the score
+    kept, info = gate_clips(model, x * mask, mask, np.asarray(y))
+    assert info[0][0]["knn_weight"] == 1.0 and info[0][0]["gate_weight"] > 0.5      # a walk: the speed gate opens
+    model.knn_cap = (model.knn_cap[0], Gate(-2.0, -1.0))       # shut whatever the score
+    shut, info = gate_clips(model, x * mask, mask, np.asarray(y))
+    assert info[0][0]["gate_weight"] == 0.0
+    np.testing.assert_allclose(shut[0, :, 40:70], base[0, :, 40:70], atol=1e-6)
+    assert np.abs(kept[0, :, 40:70] - base[0, :, 40:70]).max() > 1e-3

@@ -155,6 +155,7 @@ def test_infill_json_reports_the_gate(tmp_path, capsys):
     info = json.load(open(tmp_path / "o" / "infill.json"))
     g = info["gaps_ood"][0]
     assert g["gap_index"] == 0 and g["ood_score"] > 0 and 0.0 <= g["gate_weight"] <= 1.0
+    assert g["knn_score"] > 0 and g["gate_weight"] <= g["knn_weight"] + 1e-12        # the k-NN cap, reported
     if g["gate_weight"] < 0.5:
         assert "falls mostly back" in capsys.readouterr().err
 

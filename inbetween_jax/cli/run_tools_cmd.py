@@ -40,9 +40,9 @@ def add_parser(sub) -> None:
     p.add_argument("--kind", default=None, choices=("knn", "travel"),
                    help="S-CVAE / CAE: the gate's score, the context's k-NN distance to the training split's or how "
                         "fast the root travels (default travel, the one chosen on the validation subjects for both)")
-    p.add_argument("--in-clip-only", action="store_true",
-                   help="S-CVAE: keep the folder's gate and (re)calibrate only the thresholds it uses inside a clip "
-                        "(where the frames beside the keyframes are known)")
+    p.add_argument("--keep-gate", action="store_true",
+                   help="keep the folder's gate and (re)calibrate only what is added to it: the S-CVAE's thresholds "
+                        "inside a clip (the frames beside the keyframes known), the CAE's k-NN cap")
     p = one("build-bank", "write a run's motion bank (training files without the validation ones)", run_bank)
     p.add_argument("--split", default="fit", choices=("fit", "train"), help="motions the bank holds (default fit)")
     p.add_argument("--mirror", action="store_true", help="S-CVAE: add each motion's mirror image to the bank")
@@ -77,12 +77,12 @@ def run_calibrate(args) -> int:
     calibrate = importlib.import_module(f"inbetween_jax.models.{run.model}.calibrate").calibrate
     if args.kind is not None and "kind" not in inspect.signature(calibrate).parameters:
         raise UserError(f"{args.run_dir}: the {run.model} model's gate has one score (no --kind)")
-    if args.in_clip_only:
+    if args.keep_gate:
         module = importlib.import_module(f"inbetween_jax.models.{run.model}.calibrate")
-        if not hasattr(module, "calibrate_in_clip") or args.kind is not None:
-            raise UserError(f"{args.run_dir}: --in-clip-only is for S-CVAE gates, without --kind")
-        from inbetween_jax.models.ood import calibrate_in_clip_run
-        print(json.dumps(calibrate_in_clip_run(args.run_dir, source), indent=1, default=float))
+        if not hasattr(module, "calibrate_additions") or args.kind is not None:
+            raise UserError(f"{args.run_dir}: --keep-gate is for S-CVAE and CAE gates, without --kind")
+        from inbetween_jax.models.ood import calibrate_additions_run
+        print(json.dumps(calibrate_additions_run(args.run_dir, source), indent=1, default=float))
         return 0
     kwargs = {} if args.kind is None else {"kind": args.kind}
     print(json.dumps(calibrate_run(args.run_dir, source, **kwargs), indent=1, default=float))

@@ -26,7 +26,7 @@ import numpy as np
 __all__ = ["ContextBank", "TravelScore", "SpeedScore", "FloorSpeedScore", "Gate", "build_bank", "calibrate_gate",
            "held_out_ratios", "gated_ratio", "BLEND_WEIGHTS", "OOD_FILE", "gate_note", "save_gate", "load_gate",
            "gated_records", "calibrate_run", "CALIBRATION_FILE", "run_gate", "calibration_worst_case",
-           "load_gate_array", "calibrate_in_clip_run"]
+           "load_gate_array", "calibrate_additions_run"]
 
 OOD_FILE = "ood.npz"                              # the bank and gate in a run folder / shipped weights folder
 BLEND_WEIGHTS = (0.0, 0.25, 0.5, 0.75, 1.0)       # weights of the learned fill at which calibration scores windows
@@ -319,10 +319,11 @@ def calibrate_run(run_dir: str, source: str, **kwargs) -> dict:
     return res["summary"]
 
 
-def calibrate_in_clip_run(run_dir: str, source: str) -> dict:
-    """Add (or redo) the thresholds a model's gate uses inside a clip (``models/<model>/calibrate.py``'s
-    ``calibrate_in_clip``) to ``run_dir``'s ``ood.npz`` and ``ood_calibration.json``, keeping its gate as it is
-    (``inbetween calibrate-gate RUN_DIR --in-clip-only``).  Returns the new summary numbers.
+def calibrate_additions_run(run_dir: str, source: str) -> dict:
+    """Add (or redo) what a model's calibration adds to its gate (``models/<model>/calibrate.py``'s
+    ``calibrate_additions``: the S-CVAE's thresholds inside a clip, the CAE's k-NN cap) in ``run_dir``'s
+    ``ood.npz`` and ``ood_calibration.json``, keeping the gate itself as it is (``inbetween calibrate-gate RUN_DIR
+    --keep-gate``).  Returns the new summary numbers.
 
     Raises:
         RunError: the folder holds no calibrated gate (one line).
@@ -334,16 +335,16 @@ def calibrate_in_clip_run(run_dir: str, source: str) -> dict:
     path, cal_path = os.path.join(run_dir, OOD_FILE), os.path.join(run_dir, CALIBRATION_FILE)
     if not (os.path.exists(path) and os.path.exists(cal_path)):
         raise RunError(f"{run_dir}: no calibrated gate to add to (run `inbetween calibrate-gate {run_dir}` first)")
-    res = importlib.import_module(f"inbetween_jax.models.{run.model}.calibrate").calibrate_in_clip(run, source)
+    res = importlib.import_module(f"inbetween_jax.models.{run.model}.calibrate").calibrate_additions(run, source)
     with np.load(path) as z:
         arrays = {k: z[k] for k in z.files}
-    arrays.update({k: np.float64(v) for k, v in res["arrays"].items()})
+    arrays.update({k: np.asarray(v) for k, v in res["arrays"].items()})
     tmp = path + ".tmp.npz"
     np.savez_compressed(tmp, **arrays)
     with open(cal_path) as f:
         cal = json.load(f)
     cal["summary"].update(res["summary"])
-    cal["context_records"] = res["context_records"]
+    cal.update({k: v for k, v in res.items() if k.endswith("_records")})
     with open(cal_path + ".tmp", "w") as f:
         json.dump(cal, f)
     os.replace(tmp, path)

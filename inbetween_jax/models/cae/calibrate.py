@@ -36,6 +36,7 @@ def calibrate(run, source: str, seconds=(1, 2), clip: int = 96, positions=(-12, 
     :class:`~inbetween_jax.models.ood.ContextBank`).  Both are recorded per gap.
     split: the motions scored (default: the validation split of the run's training split; another, e.g.
     ``val-activities``, only to study the records: the gate is chosen on those motions).
+    With ``kind="travel"`` also the k-NN cap (:func:`.gate.knn_cap`; ``arrays``, the summary's ``knn_cap_*``).
     Returns ``{"bank" (the scorer), "gate", "summary", "records"}``; a record per clip and gap (``name`` the clip,
     ``frames``, ``score`` (the gate's), ``knn_score``, ``floor_speed``, ``ratios_at``: body-frame joint error /
     the pre-fill's at each blend weight)."""
@@ -43,7 +44,8 @@ def calibrate(run, source: str, seconds=(1, 2), clip: int = 96, positions=(-12, 
     from inbetween_jax.evaluation import infilling as proto
     from inbetween_jax.models.cae.features import body_positions
     from inbetween_jax.data.datasets import val_split_of
-    from inbetween_jax.models.cae.gate import base_fill, floor_scorer, gap_context, training_contexts
+    from inbetween_jax.models.cae.gate import (KNN_CAP_PREFIX, base_fill, floor_scorer, gap_context,
+                                               knn_cap_thresholds, training_contexts)
     from inbetween_jax.models.cae.infer import fill, load
     from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
     from inbetween_jax.models.cae.train import load_data
@@ -83,8 +85,21 @@ def calibrate(run, source: str, seconds=(1, 2), clip: int = 96, positions=(-12, 
     from inbetween_jax.data.activities import activity_group
     gate, summary = calibrate_gate([r["score"] for r in records], [r["ratios_at"] for r in records],
                                    groups=[f"{activity_group(r['name'])}/{r['frames']}" for r in records])
-    return {"bank": bank if kind == "knn" else floor, "gate": gate,
-            "summary": dict(summary, lo=gate.lo, hi=gate.hi, kind=kind), "records": records}
+    out = {"bank": bank if kind == "knn" else floor, "gate": gate,
+           "summary": dict(summary, lo=gate.lo, hi=gate.hi, kind=kind), "records": records}
+    if kind == "travel":                     # the k-NN cap (gate.knn_cap) from the same validation gaps
+        cap = knn_cap_thresholds([r["knn_score"] for r in records])
+        out["arrays"] = dict(bank.arrays(KNN_CAP_PREFIX + "bank_"), **{f"{KNN_CAP_PREFIX}gate_lo": cap.lo,
+                                                                       f"{KNN_CAP_PREFIX}gate_hi": cap.hi})
+        out["summary"].update(knn_cap_lo=cap.lo, knn_cap_hi=cap.hi)
+    return out
+
+
+def calibrate_additions(run, source: str) -> dict:
+    """What :func:`calibrate` adds to the gate, alone (``inbetween calibrate-gate RUN_DIR --keep-gate``): the
+    k-NN cap from the run's validation gaps.  Returns ``{"arrays", "summary"}``."""
+    res = calibrate(run, source, kind="travel")
+    return {"arrays": res["arrays"], "summary": {k: v for k, v in res["summary"].items() if k.startswith("knn_cap")}}
 
 
 def short_name(path: str) -> str:

@@ -89,6 +89,8 @@ class ModelConfig:
                                                 # left-right mirrored clip (not the paper)
     ood_gate: bool = False                      # inference: blend toward the fill as the gap's context leaves the
                                                 # training motion (ood.npz, models/ood.py; on in the shipped weights)
+    knn_gate: bool = True                       # ... capped by the k-NN cap of ood.npz when it holds one (novel
+                                                # contexts: cae/gate.py)
     root_bound: float = 0.0                     # inference: the root path stays within this many metres of the
                                                 # base's root path (0: unbounded, the paper)
     match_k: int = 0                            # inference, inside a file: blend in the k nearest training windows

@@ -7,12 +7,22 @@ b + 3, b + 7`` after it (clipped into the clip), plus the gap's length / 30.  Th
 gaps in the training clips.  ``ood.npz`` in the run (or shipped) folder holds bank and gate; ``model.ood_gate``
 switches the blend on.  Instead of the bank, the score may be the root's floor speed at those frames
 (:func:`floor_scorer`, ``inbetween calibrate-gate RUN_DIR --kind travel``).
+
+The k-NN cap (``model.knn_gate``; :func:`knn_cap`): a second weight from the gap context's k-NN distance to the
+training contexts, its thresholds the 90th percentile and the maximum of the validation subjects' distances
+(:func:`knn_cap_thresholds`), and the gap keeps the smaller of the two weights.  A network trained on locomotion
+may travel through a dance or a kata it never saw: there the root moves, so the speed gate opens, but the context
+lies farther from the training motion than any validation gap's.
 """
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["CONTEXT_FRAMES", "gap_context", "training_contexts", "base_fill", "gate_clips", "floor_scorer"]
+__all__ = ["CONTEXT_FRAMES", "gap_context", "training_contexts", "base_fill", "gate_clips", "floor_scorer", "knn_cap",
+           "knn_cap_thresholds", "KNN_CAP_PREFIX", "KNN_CAP_QUANTILES"]
+
+KNN_CAP_PREFIX = "knn_cap_"          # ood.npz: the cap's ContextBank arrays and its gate_lo / gate_hi
+KNN_CAP_QUANTILES = (0.9, 1.0)       # the cap's thresholds: these quantiles of the validation gaps' k-NN scores
 
 CONTEXT_FRAMES = (-1, -4, -8, 0, 3, 7)     # offsets from a (negative) and from b (the rest)
 
@@ -76,6 +86,7 @@ def gate_clips(model, x_masked, mask, y):
     missing from the whole clip (joints a capture lacks) keep the network's fill, the only one there is."""
     from inbetween_jax.models.cae.masks import gap_ranges
     bank, gate = model.gate
+    cap = getattr(model, "knn_cap", None) if getattr(model.cfg.model, "knn_gate", False) else None
     m = np.broadcast_to(np.asarray(mask, np.float32), np.shape(y))
     frames = (m.max(axis=1) > 0.5).astype(np.float32)                       # (N, T) 1 = some known
     base = base_fill(model, x_masked, m)
@@ -84,9 +95,36 @@ def gate_clips(model, x_masked, mask, y):
     for i in range(len(out)):
         rows = []
         for a, b in gap_ranges(frames[i]):
-            score = float(bank.score(gap_context(x_masked[i:i + 1], a, b))[0])
-            w = float(gate.weight(score))
+            ctx = gap_context(x_masked[i:i + 1], a, b)
+            score = float(bank.score(ctx)[0])
+            w, row = float(gate.weight(score)), {"gap": [int(a), int(b)], "ood_score": score}
+            if cap is not None:
+                knn = float(cap[0].score(ctx)[0])
+                row.update(knn_score=knn, knn_weight=float(cap[1].weight(knn)))
+                w = min(w, row["knn_weight"])
             out[i, :, a:b] = base[i, :, a:b] + w * (out[i, :, a:b] - base[i, :, a:b])
-            rows.append({"gap": [int(a), int(b)], "ood_score": score, "gate_weight": w})
+            rows.append(dict(row, gate_weight=w))
         info.append(rows)
     return out, info
+
+
+def knn_cap_thresholds(knn_scores, quantiles=KNN_CAP_QUANTILES):
+    """The k-NN cap's :class:`~inbetween_jax.models.ood.Gate` from the validation gaps' k-NN scores: the learned
+    fill whole up to their ``quantiles[0]`` quantile, none beyond their ``quantiles[1]`` (the farthest)."""
+    from inbetween_jax.models.ood import Gate
+    lo, hi = (float(np.quantile(np.asarray(knn_scores, np.float64), q)) for q in quantiles)
+    return Gate(lo, max(hi, lo + 1e-6))
+
+
+def knn_cap(run_dir: str):
+    """``(ContextBank, Gate)`` of the k-NN cap in ``run_dir/ood.npz``, or None when it holds none."""
+    import os
+    from inbetween_jax.models.ood import OOD_FILE, ContextBank, Gate
+    path = os.path.join(run_dir, OOD_FILE)
+    if not os.path.exists(path):
+        return None
+    with np.load(path) as z:
+        if f"{KNN_CAP_PREFIX}gate_lo" not in z.files:
+            return None
+        return (ContextBank.from_arrays(z, KNN_CAP_PREFIX + "bank_"),
+                Gate(float(z[f"{KNN_CAP_PREFIX}gate_lo"]), float(z[f"{KNN_CAP_PREFIX}gate_hi"])))

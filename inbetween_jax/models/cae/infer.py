@@ -46,6 +46,7 @@ class TrainedCAE:
                  step: int, gate: tuple | None = None, match=None):
         self.params, self.cfg, self.normalizer, self.skeleton, self.step = params, cfg, normalizer, skeleton, step
         self.gate = gate            # (ContextBank, Gate) of ood.npz when model.ood_gate is on
+        self.knn_cap = None         # (ContextBank, Gate): the gate's k-NN cap (model.knn_gate, gate.knn_cap)
         self.match = match          # bank.MatchBank of bank.npz when model.match_k > 0
         self.num_joints = int(num_joints)
         apply = functools.partial(cae_model.apply, cfg=cfg)
@@ -97,7 +98,11 @@ def load(run: Run) -> TrainedCAE:
             match = MatchBank.from_transition_bank(tb, skeleton, normalizer, j)
         except UserError as e:
             raise RunError(f"{run.run_dir}: {e}") from None
-    return TrainedCAE(state["params"], cfg, normalizer, skeleton, j, run.step, gate, match)
+    model = TrainedCAE(state["params"], cfg, normalizer, skeleton, j, run.step, gate, match)
+    if gate is not None and cfg.model.knn_gate:
+        from inbetween_jax.models.cae.gate import knn_cap
+        model.knn_cap = knn_cap(run.run_dir)
+    return model
 
 
 def fill(model, x_norm, mask, keep_known: bool = False, chunk: int = 64, gate: bool = True) -> np.ndarray:
@@ -258,7 +263,8 @@ def infill(args, run: Run) -> InfillResult:
                "refit_frames": int(np.sum(res["frames"]))}
     if res["gaps_ood"]:             # the gate and the match, per gap (in the order of "gaps")
         from inbetween_jax.models.ood import gate_note
-        keys = ("ood_score", "gate_weight", "match_distance", "speed_beside", "match_departure", "match_weight")
+        keys = ("ood_score", "knn_score", "knn_weight", "gate_weight", "match_distance", "speed_beside",
+                "match_departure", "match_weight")
         summary["gaps_ood"] = [dict({"gap_index": i}, **{k: g[k] for k in keys if k in g})
                                for i, g in enumerate(res["gaps_ood"])]
         for i, g in enumerate(res["gaps_ood"]):
@@ -266,6 +272,10 @@ def infill(args, run: Run) -> InfillResult:
                 notes.append(f"gap {i + 1}: follows the nearest training motion (match distance "
                              f"{g['match_distance']:.4f}, departure {g['match_departure']:.2f}, weight "
                              f"{g['match_weight']:.2f})")
+            elif g.get("knn_weight", 1.0) < 0.5:
+                notes.append(f"gap {i + 1}: falls mostly back to the Hermite fill: the motion beside it lies "
+                             f"farther from the training motion than the validation gaps' (k-NN score "
+                             f"{g['knn_score']:.2f}, weight {g['gate_weight']:.2f})")
             elif g.get("gate_weight", 1.0) < 0.5:
                 notes.append(f"gap {i + 1}: " + gate_note(g["ood_score"], g["gate_weight"], "the Hermite fill"))
             if "match_weight" in g and g.get("match_distance") is None:

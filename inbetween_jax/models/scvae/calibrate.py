@@ -141,3 +141,9 @@ class _Zero:
 
     def score(self, desc):
         return np.zeros(len(desc))
+
+
+def calibrate_additions(run, source: str) -> dict:
+    """What :func:`calibrate` adds to the gate, alone (``inbetween calibrate-gate RUN_DIR --keep-gate``): the
+    thresholds inside a clip (:func:`calibrate_in_clip`)."""
+    return calibrate_in_clip(run, source)
