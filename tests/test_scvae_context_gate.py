@@ -63,6 +63,10 @@ def test_the_clip_thresholds_apply_inside_a_clip_only(shipped):
     off = dataclasses.replace(inside_shut, cfg=dataclasses.replace(inside_shut.cfg, model=dataclasses.replace(
         inside_shut.cfg.model, context_gate=False)))                           # the switch off: the main gate
     assert infer.infill_between(off, m.skeleton, s, e, 20, 1, 0, fa)["gate_weight"] == 1.0
+    many = infer.infill_between(inside_shut, m.skeleton, s, e, 20, 3, 0, fa)     # the sampled mode keeps the
+    assert many["gate_weight"] == 0.0 and many["sample_gate_weight"] == 1.0     # two-keyframe gate's weight
+    np.testing.assert_allclose(many["r"][0], out["r"][0], atol=1e-6)           # sample 0 is the fill
+    assert np.abs(many["r"][1:] - many["r"][:1]).max() > 1e-3                   # the others still leave it
     s, e = _keys(m, 40, 20, sides=False)                                       # two keyframes alone: main gate
     bare = infer.infill_between(inside_shut, m.skeleton, s, e, 20, 1, 0, fa)
     assert bare["context"] == "none" and bare["gate_weight"] == 1.0

@@ -87,6 +87,12 @@ def load(run) -> Trained:
                    load_bank(run.run_dir, cfg.model, int(num_joints)), gate, inside)
 
 
+def _sample_gate(gated: dict):
+    """The gate weight the sampled mode scales its pull toward captured transitions by: the two-keyframe gate's, also
+    inside a clip, where the fill itself follows the stricter in-clip thresholds (None without a gate)."""
+    return gated.get("sample_gate_weight", gated.get("gate_weight"))
+
+
 def load_bank(run_dir: str, model_cfg, num_joints: int) -> TransitionBank | None:
     """The run folder's transition bank when ``model_cfg`` uses one (:func:`.bank.bank_needed`), else None.
 
@@ -291,6 +297,8 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
                                                  q[:, None, 1:-1], r[:, None, 1:-1])
         q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
         gated = {"ood_score": float(score[0]), "gate_weight": float(weight[0])}
+        if gate is not trained.gate:      # the sampled mode keeps the two-keyframe gate's weight (docs: gate.md)
+            gated["sample_gate_weight"] = float(trained.gate[1].weight(score)[0])
     if ctx != "none":                # the departure from Slerp / lerp onto the Hermite path through the neighbours
         from inbetween_jax.models.scvae.gate import slerp_base
         before, after = known_sides(start, end)
@@ -305,7 +313,7 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
     if trained.bank is not None and sampled_mode(m, num_samples):   # sample s >= 1: the bank's s-th nearest
         spread = m.timing_spread if ctx == "none" else m.timing_spread_in_clip   # the sides pin the timing more
         mid_q, mid_r = bank_sample_blend(trained.bank, qs[None], roots[:1], qe[None], roots[1:], q[:, None, 1:-1],
-                                         r[:, None, 1:-1], sample_weight(m, gated.get("gate_weight")), spread,
+                                         r[:, None, 1:-1], sample_weight(m, _sample_gate(gated)), spread,
                                          body_parts(skeleton) if m.timing_parts else None)
         q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
         if spread > 0:                                               # as bank_sample_blend retimes
@@ -384,14 +392,14 @@ def infill(args, run):
     context = res.get("context", "none")
     if context != "none":
         notes.append(f"following the motion beside the keyframes ({context}): Hermite path, not Slerp")
-    gated = {k: res[k] for k in ("ood_score", "gate_weight") if k in res}
+    gated = {k: res[k] for k in ("ood_score", "gate_weight", "sample_gate_weight") if k in res}
     sampling = trained.bank is not None and sampled_mode(m, args.samples)
-    toward = float(sample_weight(m, gated.get("gate_weight"))) if sampling else 0.0   # samples 1.. toward capture
+    toward = float(sample_weight(m, _sample_gate(gated))) if sampling else 0.0   # samples 1.. toward capture
     if gated:
         from inbetween_jax.models.ood import gate_note
         notes.append(gate_note(gated["ood_score"], gated["gate_weight"],
                                "Slerp / lerp" if context == "none" else "the Hermite path"))
-        if sampling and m.bank_sample_gated and gated["gate_weight"] < 0.5:
+        if sampling and m.bank_sample_gated and _sample_gate(gated) < 0.5:
             notes.append(f"the {args.samples} samples stay close to the fill: the keyframes lie outside the captured "
                          f"motion the samples draw on (sampled-mode weight {toward:.2f})")
     t = args.frames + 2
