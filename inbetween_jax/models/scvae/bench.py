@@ -88,11 +88,16 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
                          **transition_metrics(bench, N_PAST, length, s["q"], s["r"], x_mean, x_std)})
             s = dict(s, **dict(zip(("q", "r"), blend(s["q"], s["r"], q, r, model_cfg.bank_weight))))
         variants, weight = [("S-CVAE", s["q"], s["r"])], None
+        clip_q, clip_r = s["q"], s["r"]      # what goes onto the Hermite path inside a clip (gated below)
         if gated:          # the network before the gate, then the gated samples (models/ood.py)
             rows.append({"method": UNGATED, "frames": length, "MMPE": None,
                          **transition_metrics(bench, N_PAST, length, s["q"], s["r"], x_mean, x_std)})
             q, r, _, weight = gate_windows(trained.gate, bench, N_PAST - 1, N_PAST + length, s["q"], s["r"], fa)
             variants = [(UNGATED, s["q"], s["r"]), ("S-CVAE", q, r)]
+            clip_q, clip_r = q, r
+            if trained.context_gate is not None and model_cfg.context_gate:    # its own thresholds there
+                clip_q, clip_r = gate_windows((trained.gate[0], trained.context_gate), bench, N_PAST - 1,
+                                              N_PAST + length, s["q"], s["r"], fa)[:2]
             s = dict(s, q=q, r=r)
         if trained.bank is not None and sampled_mode(model_cfg, NUM_SAMPLES):   # samples table only
             variants.append((SAMPLED, *infer.bank_samples(trained.bank, model_cfg, bench, N_PAST, length, s["q"],
@@ -100,7 +105,7 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
         sample_table += length_rows(bench, N_PAST, length, x_mean, x_std, variants)
         per_window += window_ratios(bench, N_PAST, length, s["q"], s["r"])
         if model_cfg.context_base:     # inside a clip: onto the Hermite path through the frames beside the keyframes
-            cq, cr, hq, hr = in_clip(bench, N_PAST, length, s["q"], s["r"], model_cfg)
+            cq, cr, hq, hr = in_clip(bench, N_PAST, length, clip_q, clip_r, model_cfg)
             rows += [{"method": name, "frames": length, "MMPE": None,
                       **transition_metrics(bench, N_PAST, length, q_, r_, x_mean, x_std)}
                      for name, q_, r_ in ((HERMITE_NAME, hq, hr), (IN_CLIP_NAME, cq, cr))]
