@@ -52,6 +52,14 @@ def detect_unit_scale(skeleton) -> float:
     return float(f"{raw:.3g}")
 
 
+def unit_factor(skel, ref) -> float:
+    """Reference units per file unit: the ratio of detected unit scales, or the exact leg-length ratio when
+    it agrees with that ratio within 5 % (the same generic body at another scale)."""
+    factor = detect_unit_scale(skel) / detect_unit_scale(ref)
+    exact = leg_length(ref) / leg_length(skel)
+    return exact if abs(exact / factor - 1.0) <= 0.05 else factor
+
+
 def foot_contacts(foot_pos: np.ndarray, velfactor: float = 0.02, unit_scale: float = 1.0) -> np.ndarray:
     """LaFAN1 contact labels: a foot joint is in contact when its squared displacement to the next
     frame is below ``velfactor`` (cm^2 per frame^2); the last frame repeats the previous label.

@@ -197,7 +197,7 @@ def to_frame(prep: Prepared, frame: int, side: str | None = None) -> int:
 
 def prepare(motion, path: str, ckpt_skel, fps=None) -> Prepared:
     """Resample ``motion`` to ``fps`` (None: keep), match it to ``ckpt_skel`` (None: take as it is) and convert it
-    to ``ckpt_skel``'s length unit (:func:`~inbetween_jax.data.sources.unit_factor`: detected from the leg
+    to ``ckpt_skel``'s length unit (:func:`~inbetween_jax.data.features.unit_factor`: detected from the leg
     length, e.g. the 1/128-scaled CMU salsa files or CMU's 0.0564 m unit; :attr:`Prepared.factor`).  The CAE's
     features, the S-CVAE's root velocities and every gate's speed are in the training data's unit: a file in
     metres would otherwise read as a body standing still.
@@ -239,7 +239,7 @@ def prepare(motion, path: str, ckpt_skel, fps=None) -> Prepared:
             parts.append(f"{n} extra joint{'s' if n != 1 else ''} follow{'s' if n == 1 else ''} by interpolation")
     factor = 1.0
     if ckpt_skel is not None:
-        from inbetween_jax.data.sources import unit_factor
+        from inbetween_jax.data.features import unit_factor
         factor = float(unit_factor(out.skeleton, ckpt_skel))
         if abs(factor - 1.0) > UNIT_TOLERANCE:
             out = out.scaled(factor)

@@ -205,15 +205,6 @@ def reference_skeleton():
     return read_bvh(embedded_files("train")[0]).skeleton
 
 
-def unit_factor(skel, ref) -> float:
-    """Reference units per file unit: the ratio of detected unit scales, or the exact leg-length ratio when
-    it agrees with that ratio within 5 % (the same generic body at another scale)."""
-    from inbetween_jax.data.features import detect_unit_scale, leg_length
-    factor = detect_unit_scale(skel) / detect_unit_scale(ref)
-    exact = leg_length(ref) / leg_length(skel)
-    return exact if abs(exact / factor - 1.0) <= 0.05 else factor
-
-
 def to_reference(motion, ref, fps: float, drop_tpose: bool = True):
     """``motion`` on ``ref``'s joints (same order), in ``ref``'s unit, without a leading T-pose frame, at
     ``fps``: a Motion (T', J_ref) whose skeleton is ``ref`` itself.
@@ -227,6 +218,7 @@ def to_reference(motion, ref, fps: float, drop_tpose: bool = True):
     from inbetween_jax.data.retarget import match_joints, restrict
     if not motion.skeleton.same_topology(ref):
         motion = restrict(motion, match_joints(motion.skeleton, ref, motion.source), ref)
+    from inbetween_jax.data.features import unit_factor
     factor = unit_factor(motion.skeleton, ref)
     offsets = np.asarray(motion.skeleton.offsets, np.float64) * factor
     err = float(np.abs(offsets[1:] - np.asarray(ref.offsets)[1:]).max())
