@@ -313,10 +313,14 @@ def calibrate_run(run_dir: str, source: str, **kwargs) -> dict:
     tmp = os.path.join(run_dir, CALIBRATION_FILE + ".tmp")
     with open(tmp, "w") as f:
         json.dump({"model": run.model, "step": int(run.step), "source": source, "summary": res["summary"],
-                   "records": res["records"],
-                   **({"context_records": res["context_records"]} if "context_records" in res else {})}, f)
+                   "records": res["records"], **_extra_records(res)}, f)
     os.replace(tmp, os.path.join(run_dir, CALIBRATION_FILE))
     return res["summary"]
+
+
+def _extra_records(res: dict) -> dict:
+    """A calibration's records beside the gate's own (``context_records``: the S-CVAE's gaps inside clips)."""
+    return {k: v for k, v in res.items() if k.endswith("_records")}
 
 
 def calibrate_additions_run(run_dir: str, source: str) -> dict:
@@ -344,7 +348,7 @@ def calibrate_additions_run(run_dir: str, source: str) -> dict:
     with open(cal_path) as f:
         cal = json.load(f)
     cal["summary"].update(res["summary"])
-    cal.update({k: v for k, v in res.items() if k.endswith("_records")})
+    cal.update(_extra_records(res))
     with open(cal_path + ".tmp", "w") as f:
         json.dump(cal, f)
     os.replace(tmp, path)
