@@ -27,7 +27,7 @@ scorer, own = load_gate(a.run_dir)
 sets = {s: calibrate(run, run.data.get("source", "cmu"), split=s)["records"] for s in ("val-subjects", "val-activities")}
 familiar = np.array([r["knn_score"] for r in sets["val-subjects"]])
 for split, recs in sets.items():
-    floor = own.weight([1.0 / (1.0 + r["floor_speed"] / scorer.c) for r in recs])
+    floor = own.weight(scorer.score_of_speed([r["floor_speed"] for r in recs]))
     gates = {"network alone (weight 1)": np.ones(len(recs)), "the run's gate (floor speed)": floor}
     for spec in a.quantiles.split(","):
         lo_q, hi_q = (float(x) for x in spec.split(":"))

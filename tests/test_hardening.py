@@ -286,3 +286,20 @@ def test_damaged_run_folder_is_one_line(damage, runs, tmp_path, capfd):
     assert len(lines) == 1 and lines[0].startswith("inbetween: error: ") and "run" in lines[0], err
     assert DAMAGED[damage] in lines[0], lines[0]
     _assert_nothing_written(out)
+
+
+def test_bench_l2p_stats_file_is_read_or_refused_in_one_line(tmp_path):
+    """``inbetween bench --l2p-stats FILE``: the official statistics' two arrays are read as they are; a file
+    without them, or not an .npz at all, is one line naming it."""
+    from inbetween_jax.cli.bench_cmd import load_l2p_stats
+    from inbetween_jax.errors import UserError
+    good, partial, junk = (str(tmp_path / n) for n in ("stats.npz", "partial.npz", "junk.npz"))
+    np.savez(good, x_mean=np.arange(6.0).reshape(1, 6, 1), x_std=np.full((1, 6, 1), 2.0))
+    np.savez(partial, x_mean=np.zeros((1, 6, 1)))
+    open(junk, "wb").write(b"PK\x03\x04 cut short")
+    x_mean, x_std, note = load_l2p_stats("embedded", good)
+    assert x_mean.shape == (1, 6, 1) and x_mean[0, 5, 0] == 5.0 and x_std.max() == 2.0 and "stats.npz" in note
+    for path in (partial, junk):
+        with pytest.raises(UserError) as e:
+            load_l2p_stats("embedded", path)
+        assert path in str(e.value) and "\n" not in str(e.value)

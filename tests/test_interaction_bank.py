@@ -120,6 +120,9 @@ def test_bank_file_round_trip_and_errors(bank, tmp_path):
     bad.write_bytes(b"not an npz")
     with pytest.raises(UserError, match="junk.npz"):
         MotionBank.load(str(bad))
+    bad.write_bytes(open(path, "rb").read()[:200])          # cut short: not a zip any more
+    with pytest.raises(UserError, match="junk.npz: not a readable motion bank"):
+        MotionBank.load(str(bad))
     cfg = get_config("tiny")
     on = dataclasses.replace(cfg, model=dataclasses.replace(cfg.model, texture_sigma=4.0))
     with pytest.raises(RunError, match="needs bank.npz, which is missing"):

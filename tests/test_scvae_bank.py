@@ -129,6 +129,10 @@ def test_bank_file_round_trip_and_errors(bank, tmp_path):
     np.savez(str(tmp_path / "bad.npz"), local_quats=np.zeros((4, 3)))
     with pytest.raises(UserError, match="bad.npz"):
         TransitionBank.load(str(tmp_path / "bad.npz"))
+    for name, data in (("empty.npz", b""), ("cut.npz", open(path, "rb").read()[:200])):   # not zips / cut short
+        (tmp_path / name).write_bytes(data)
+        with pytest.raises(UserError, match=f"{name}: not a readable transition bank"):
+            TransitionBank.load(str(tmp_path / name))
     with pytest.raises(UserError, match="no clip holds"):
         back.index(10 ** 6)
 

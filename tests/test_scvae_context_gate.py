@@ -37,6 +37,20 @@ def test_context_gate_is_read_only_when_ood_npz_holds_it(tmp_path):
     assert (g.lo, g.hi) == (0.1, 0.3)
 
 
+def test_a_damaged_ood_npz_is_one_line_naming_the_file_for_both_optional_gates(tmp_path):
+    """The in-clip thresholds and the CAE's k-NN cap are optional, but a file that is there and unreadable is
+    an error naming it, not a traceback (nor silently no gate)."""
+    from inbetween_jax.models.cae.gate import knn_cap
+    from inbetween_jax.models.ood import OOD_FILE
+    from inbetween_jax.models.scvae.gate import context_gate
+    from inbetween_jax.train.run import RunError
+    (tmp_path / OOD_FILE).write_bytes(b"PK\x03\x04 cut short")
+    for load in (context_gate, knn_cap):
+        with pytest.raises(RunError) as e:
+            load(str(tmp_path))
+        assert OOD_FILE in str(e.value) and "\n" not in str(e.value)
+
+
 def _keys(m, k0, n, sides):
     k1 = k0 + n + 1
     s = {"q": m.local_quats[k0], "r": m.root_pos[k0], "c": np.zeros(4)}

@@ -22,7 +22,7 @@ import os
 import sys
 import time
 
-from inbetween_jax.errors import UserError
+from inbetween_jax.errors import NPZ_READ_ERRORS, UserError
 from inbetween_jax.models import MODELS, REGISTRY
 
 
@@ -50,8 +50,12 @@ def load_l2p_stats(source, path):
 
     from inbetween_jax.data import l2p_stats, load_dataset
     if path:
-        z = np.load(path)
-        return z["x_mean"], z["x_std"], f"from {os.path.basename(path)}"
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                return np.asarray(z["x_mean"]), np.asarray(z["x_std"]), f"from {os.path.basename(path)}"
+        except (*NPZ_READ_ERRORS, KeyError) as e:
+            raise UserError(f"--l2p-stats {path}: not readable L2P statistics, needs arrays x_mean and x_std "
+                            f"({type(e).__name__}: {str(e)[:120]})") from None
     _, gp = load_dataset(source, "train").global_pose()
     x_mean, x_std = l2p_stats(gp)
     return x_mean, x_std, "computed on this source's training windows"

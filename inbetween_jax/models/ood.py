@@ -23,10 +23,12 @@ import os
 
 import numpy as np
 
+from inbetween_jax.errors import NPZ_READ_ERRORS
+
 __all__ = ["ContextBank", "TravelScore", "SpeedScore", "FloorSpeedScore", "Gate", "build_bank", "calibrate_gate",
            "held_out_ratios", "gated_ratio", "BLEND_WEIGHTS", "OOD_FILE", "gate_note", "save_gate", "load_gate",
            "gated_records", "calibrate_run", "CALIBRATION_FILE", "run_gate", "calibration_worst_case",
-           "load_gate_array", "calibrate_additions_run"]
+           "load_gate_array", "optional_gate_arrays", "calibrate_additions_run"]
 
 OOD_FILE = "ood.npz"                              # the bank and gate in a run folder / shipped weights folder
 BLEND_WEIGHTS = (0.0, 0.25, 0.5, 0.75, 1.0)       # weights of the learned fill at which calibration scores windows
@@ -136,7 +138,11 @@ class FloorSpeedScore:
         return np.linalg.norm(v, axis=-1).mean(1)
 
     def score(self, desc) -> np.ndarray:
-        return 1.0 / (1.0 + self.speed(desc) / self.c)
+        return self.score_of_speed(self.speed(desc))
+
+    def score_of_speed(self, speed) -> np.ndarray:
+        """The score of floor speeds already measured (data units per frame, any shape)."""
+        return 1.0 / (1.0 + np.asarray(speed, np.float64) / self.c)
 
     def arrays(self, prefix: str = "floor_") -> dict:
         return {f"{prefix}{k}": np.asarray(v) for k, v in dataclasses.asdict(self).items()}
@@ -277,7 +283,7 @@ def load_gate(run_dir: str):
             else:
                 scorer = ContextBank.from_arrays(z)
             return scorer, Gate(float(z["gate_lo"]), float(z["gate_hi"]))
-    except (OSError, ValueError, KeyError) as e:
+    except (*NPZ_READ_ERRORS, KeyError) as e:
         raise RunError(f"{path}: not a readable out-of-distribution gate ({type(e).__name__}: {e})") from None
 
 
@@ -292,9 +298,30 @@ def load_gate_array(run_dir: str, key: str, why: str) -> np.ndarray:
     try:
         with np.load(path) as z:
             return np.asarray(z[key], np.float64)
-    except (OSError, ValueError, KeyError) as e:
+    except (*NPZ_READ_ERRORS, KeyError) as e:
         raise RunError(f"{path}: {why} needs '{key}', which it does not hold ({type(e).__name__}; recalibrate with "
                        "`inbetween calibrate-gate RUN_DIR`)") from None
+
+
+def optional_gate_arrays(run_dir: str, prefix: str, required: tuple = ()) -> dict | None:
+    """The arrays of ``run_dir/ood.npz`` whose names start with ``prefix`` (what a calibration added beside the
+    gate: the S-CVAE's in-clip thresholds, the CAE's k-NN cap), or None when the file or any of ``required``
+    is absent (a gate calibrated before they existed).
+
+    Raises:
+        RunError: the file exists but cannot be read (one line).
+    """
+    from inbetween_jax.train.run import RunError
+    path = os.path.join(run_dir, OOD_FILE)
+    if not os.path.exists(path):
+        return None
+    try:
+        with np.load(path) as z:
+            if not all(k in z.files for k in required):
+                return None
+            return {k: np.asarray(z[k]) for k in z.files if k.startswith(prefix)}
+    except NPZ_READ_ERRORS as e:
+        raise RunError(f"{path}: not a readable out-of-distribution gate ({type(e).__name__}: {e})") from None
 
 
 CALIBRATION_FILE = "ood_calibration.json"        # per-window scores and ratios behind the gate (figures, tables)

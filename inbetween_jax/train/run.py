@@ -25,6 +25,8 @@ from typing import Any
 
 import numpy as np
 
+from inbetween_jax.errors import NPZ_READ_ERRORS
+
 __all__ = ["RUN_FILE", "WEIGHTS_FILE", "SELECTION_FILE", "FORMAT", "RunError", "Run", "write_run", "load_run",
            "load_run_file", "record_training", "restore_state", "selected_step", "to_json_arrays", "from_json_arrays",
            "flat_leaves"]
@@ -283,15 +285,13 @@ def _under(path: str, prefixes) -> bool:
 def _restore_weights(run: Run, target: Any) -> Any:
     """A shipped run's ``params.npz`` in the structure of ``target``: arrays cast to the target's dtypes; leaves
     outside the kept key paths (optimizer state, discriminators ...) are zeros of the target's shape / dtype."""
-    import zipfile
-
     import jax
     import jax.numpy as jnp
     keep = list(run.shipped.get("keep", []))
     try:
         with np.load(run.weights, allow_pickle=False) as z:
             stored = {k: z[k] for k in z.files}
-    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as e:
+    except (*NPZ_READ_ERRORS, KeyError) as e:
         msg = str(e).splitlines()[0] if str(e) else "empty"
         raise RunError(f"{run.weights}: cannot read the shipped weights ({type(e).__name__}: {msg[:200]})") from None
     leaves, treedef = jax.tree_util.tree_flatten_with_path(target)

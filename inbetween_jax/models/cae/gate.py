@@ -118,13 +118,9 @@ def knn_cap_thresholds(knn_scores, quantiles=KNN_CAP_QUANTILES):
 
 def knn_cap(run_dir: str):
     """``(ContextBank, Gate)`` of the k-NN cap in ``run_dir/ood.npz``, or None when it holds none."""
-    import os
-    from inbetween_jax.models.ood import OOD_FILE, ContextBank, Gate
-    path = os.path.join(run_dir, OOD_FILE)
-    if not os.path.exists(path):
+    from inbetween_jax.models.ood import ContextBank, Gate, optional_gate_arrays
+    lo, hi = f"{KNN_CAP_PREFIX}gate_lo", f"{KNN_CAP_PREFIX}gate_hi"
+    a = optional_gate_arrays(run_dir, KNN_CAP_PREFIX, (lo, hi))
+    if a is None:
         return None
-    with np.load(path) as z:
-        if f"{KNN_CAP_PREFIX}gate_lo" not in z.files:
-            return None
-        return (ContextBank.from_arrays(z, KNN_CAP_PREFIX + "bank_"),
-                Gate(float(z[f"{KNN_CAP_PREFIX}gate_lo"]), float(z[f"{KNN_CAP_PREFIX}gate_hi"])))
+    return ContextBank.from_arrays(a, KNN_CAP_PREFIX + "bank_"), Gate(float(a[lo]), float(a[hi]))

@@ -28,7 +28,7 @@ import os
 import numpy as np
 
 from inbetween_jax.data.filters import gaussian_lowpass
-from inbetween_jax.errors import UserError
+from inbetween_jax.errors import NPZ_READ_ERRORS, UserError
 from inbetween_jax.metrics.foot import SKATING_HEIGHT_CM
 from inbetween_jax.models.interaction.features import keyframe_sample
 
@@ -86,7 +86,7 @@ class MotionBank:
                 takes = tuple(np.asarray(z[k], np.float32) for k in keys)
                 bank = cls(takes, tuple(str(n) for n in z["names"]), np.asarray(z["forward_axis"], np.float64),
                            float(z["pos_scale"]), int(z["stride"]))
-        except (OSError, KeyError, ValueError) as e:
+        except (*NPZ_READ_ERRORS, KeyError) as e:
             raise UserError(f"{path}: not a readable motion bank ({e})") from None
         if not takes or any(t.ndim != 4 or t.shape[0] != 2 or t.shape[-1] != 9 for t in takes):
             raise UserError(f"{path}: not a motion bank (expected takes of shape (2, T, J, 9))")

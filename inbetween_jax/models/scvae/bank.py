@@ -24,7 +24,7 @@ import os
 
 import numpy as np
 
-from inbetween_jax.errors import UserError
+from inbetween_jax.errors import NPZ_READ_ERRORS, UserError
 from inbetween_jax.geometry.kinematics import forward_kinematics, local_positions
 from inbetween_jax.geometry.mirror import MIRROR_TAG, rest_side_axis
 from inbetween_jax.geometry.quaternion import quat_from_axis_angle, quat_inv, quat_mul, quat_normalize, quat_rotate
@@ -108,7 +108,7 @@ class TransitionBank:
                            np.asarray(z["clip_starts"], np.int64), tuple(str(n) for n in z["names"]),
                            np.asarray(z["offsets"], np.float64), tuple(int(p) for p in z["parents"]),
                            np.asarray(z["forward_axis"], np.float64), int(z["stride"]))
-        except (OSError, KeyError, ValueError) as e:
+        except (*NPZ_READ_ERRORS, KeyError) as e:
             raise UserError(f"{path}: not a readable transition bank ({e})") from None
         f, j = bank.local_quats.shape[:2] if bank.local_quats.ndim == 3 else (-1, -1)
         if (bank.local_quats.ndim != 3 or bank.local_quats.shape[-1] != 4 or bank.root_pos.shape != (f, 3)
