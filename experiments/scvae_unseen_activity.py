@@ -22,13 +22,13 @@ import json
 
 import numpy as np
 
-from inbetween_jax.data import load_dataset, load_motions
+from inbetween_jax.data import load_motions
 from inbetween_jax.data.activities import activity_group
 from inbetween_jax.evaluation.worst_case import summarise
-from inbetween_jax.models.ood import Gate, build_bank, gated_ratio, load_gate
+from inbetween_jax.models.ood import Gate, gated_ratio, load_gate
 from inbetween_jax.models.scvae import infer as scvae
 from inbetween_jax.models.scvae.calibrate import in_clip_records
-from inbetween_jax.models.scvae.gate import context_gate, training_contexts
+from inbetween_jax.models.scvae.gate import context_gate, training_bank
 from inbetween_jax.train.run import load_run
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -43,8 +43,7 @@ trained = scvae.load(run)
 scorer, own = load_gate(run.run_dir)
 inside = context_gate(run.run_dir)
 fa = tuple(trained.extra.get("forward_axis") or trained.skeleton.forward_axis())
-bank = build_bank(training_contexts(load_dataset(run.data.get("source", "cmu"), run.config["train"]["split"],
-                                                 window=60, offset=20), fa))
+bank = training_bank(run.data.get("source", "cmu"), run.config["train"]["split"], fa)
 records = in_clip_records(trained, load_motions("cmu", a.split), fa, scorer=scorer, knn=bank)
 for r in records:
     r["group"] = activity_group(r["name"].rsplit(":", 1)[0])

@@ -178,3 +178,18 @@ def test_ease_into_keypose_takes_up_the_snap():
     snap = np.linalg.norm(key[0, :, :, :3] - frames[0, 0, :, 19, :, :3], axis=-1).mean()
     eased = np.linalg.norm(last, axis=-1).mean()
     assert eased < 0.2 * snap
+
+
+def test_scvae_calibration_scores_the_fill_not_the_sampled_mode():
+    """``inbetween calibrate-gate`` on the shipped S-CVAE scores the fill its gate blends: its per-window records
+    match the ones shipped in ood_calibration.json.  With the sampled mode's samples in the mean (a bug from
+    2026-12-05 to 2026-12-06) they moved by up to 13x Slerp's error and the mean ratio by 7 %."""
+    from inbetween_jax.models.scvae.calibrate import calibrate
+    from inbetween_jax.shipped import shipped_run
+    run = shipped_run("scvae")
+    with open(os.path.join(run.run_dir, "ood_calibration.json")) as f:
+        shipped = {(r["name"], r["frames"]): r for r in json.load(f)["records"] if r["frames"] == 50}
+    res = calibrate(run, "cmu", lengths=(50,), in_clip=False)        # the shipped windows: 65 frames long
+    assert len(res["records"]) == len(shipped) > 50
+    for r in res["records"]:
+        np.testing.assert_allclose(r["ratios_at"], shipped[(r["name"], 50)]["ratios_at"], atol=0.02)

@@ -252,7 +252,8 @@ def official_rows(trained, bench, x_mean, x_std, name: str) -> list:
 
     for n in lengths:
         s = infer.sample_transitions(trained.cfg.model, trained.state, bench, N_PAST, n, NUM_SAMPLES, velocity=True,
-                                     bank=trained.bank, blend_bank=False, gate=getattr(trained, "gate", None))
+                                     bank=trained.bank, blend_bank=False, gate=getattr(trained, "gate", None),
+                                     sampled=False)        # the fill, as the Table-1 rows (the samples: their table)
         q, r = s["q"], s["r"]
         if show_bank:
             bq, br = s["bank_q"], s["bank_r"]

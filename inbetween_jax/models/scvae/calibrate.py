@@ -22,22 +22,22 @@ def calibrate(run, source: str, samples: int = 4, lengths=(10, 30, 50), n_past: 
     ``context_records``; the summary's ``context_*`` numbers)."""
     from inbetween_jax.data import load_dataset
     from inbetween_jax.data.datasets import val_split_of
-    from inbetween_jax.models.ood import BLEND_WEIGHTS, TravelScore, build_bank, calibrate_gate
+    from inbetween_jax.models.ood import BLEND_WEIGHTS, TravelScore, calibrate_gate
     from inbetween_jax.models.scvae import infer
     from inbetween_jax.models.scvae.bench import per_frame_error
-    from inbetween_jax.models.scvae.gate import gate_blend, keyframe_context, slerp_base, training_contexts
+    from inbetween_jax.models.scvae.gate import gate_blend, keyframe_context, slerp_base, training_bank
     trained = infer.load(run)
     split = run.config.get("train", {}).get("split", "fit")
     fa = tuple(trained.extra.get("forward_axis") or trained.skeleton.forward_axis())
-    train = load_dataset(source, split, window=60, offset=20)
-    bank = build_bank(training_contexts(train, fa))
-    travel = TravelScore(int(train.skeleton.num_joints), float(travel_c))
+    bank = training_bank(source, split, fa)
+    travel = TravelScore(int(trained.extra["num_joints"]), float(travel_c))
     val = load_dataset(source, val_split_of(split), window=n_past + max(lengths) + 5, offset=20)
     records, k0 = [], n_past - 1
     for n in lengths:
         k1 = n_past + n
         a = (val.local_quats[:, k0], val.root_pos[:, k0], val.local_quats[:, k1], val.root_pos[:, k1])
-        s = infer.sample_transitions(trained.cfg.model, trained.state, val, n_past, n, samples, bank=trained.bank)
+        s = infer.sample_transitions(trained.cfg.model, trained.state, val, n_past, n, samples, bank=trained.bank,
+                                     sampled=False)          # the fill the gate blends, not the sampled mode
         bq, br = slerp_base(*a, n)
         base = per_frame_error(val, n_past, n, bq[None], br[None])[0].mean(-1)               # (B,)
         at = np.stack([per_frame_error(val, n_past, n, *gate_blend(s["q"], s["r"], bq, br, np.full(len(val), w)))

@@ -51,6 +51,14 @@ def training_contexts(windows, forward_axis, lengths=(5, 50), per_window: int = 
     return np.concatenate(out)
 
 
+def training_bank(source: str, split: str, forward_axis):
+    """The k-NN :class:`~inbetween_jax.models.ood.ContextBank` of a training split's keyframe contexts
+    (:func:`training_contexts` of its 60-frame windows, every 20 frames), as ``calibrate-gate --kind knn`` uses."""
+    from inbetween_jax.data import load_dataset
+    from inbetween_jax.models.ood import build_bank
+    return build_bank(training_contexts(load_dataset(source, split, window=60, offset=20), forward_axis))
+
+
 def slerp_base(q0, r0, q1, r1, n_frames: int):
     """Slerp / lerp between keyframes: q (B, n, J, 4), r (B, n, 3) for the n frames strictly between them."""
     from inbetween_jax.geometry.quaternion import quat_align, quat_slerp
@@ -90,12 +98,6 @@ def gate_windows(gate, windows, k0: int, k1: int, q, r, forward_axis=None):
 def context_gate(run_dir: str):
     """The :class:`~inbetween_jax.models.ood.Gate` of fills inside a clip, from ``run_dir/ood.npz``'s
     :data:`CONTEXT_GATE_KEYS`, or None when it holds none (a gate calibrated before 2026-12-06)."""
-    import os
-    from inbetween_jax.models.ood import OOD_FILE, Gate
-    path = os.path.join(run_dir, OOD_FILE)
-    if not os.path.exists(path):
-        return None
-    with np.load(path) as z:
-        if not all(k in z.files for k in CONTEXT_GATE_KEYS):
-            return None
-        return Gate(float(z[CONTEXT_GATE_KEYS[0]]), float(z[CONTEXT_GATE_KEYS[1]]))
+    from inbetween_jax.models.ood import Gate, optional_gate_arrays
+    a = optional_gate_arrays(run_dir, "context_gate_", CONTEXT_GATE_KEYS)
+    return None if a is None else Gate(float(a[CONTEXT_GATE_KEYS[0]]), float(a[CONTEXT_GATE_KEYS[1]]))
