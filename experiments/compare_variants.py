@@ -12,7 +12,8 @@ import json
 import os
 
 from inbetween_jax.evaluation.worst_case import worst_case_rows
-from inbetween_jax.models.ood import gated_records, load_gate
+from inbetween_jax.models.ood import load_gate
+from inbetween_jax.models.ood_runs import gated_records
 
 
 def rows_of(run_dir: str) -> list:

@@ -7,7 +7,7 @@ and ``inbetween ship-weights``, on validation data only.
 
 ``select-checkpoint`` writes ``RUN_DIR/selection.json`` (loading the run then uses that step; ``inbetween train``
 does it by itself at the end of a run trained on a ``fit`` split).  ``calibrate-gate`` writes ``RUN_DIR/ood.npz``
-and ``ood_calibration.json`` (:func:`inbetween_jax.models.ood.calibrate_run`); the gate is on with
+and ``ood_calibration.json`` (:func:`inbetween_jax.models.ood_runs.calibrate_run`); the gate is on with
 ``model.ood_gate=true`` (``inbetween ship-weights RUN_DIR --set model.ood_gate=true``).  ``build-bank`` writes
 ``RUN_DIR/bank.npz`` from the training files without the validation ones and records ``--set`` switches in
 ``run.json`` (:func:`inbetween_jax.banks.write_bank`).  The run folder is checked before JAX is loaded.
@@ -73,7 +73,7 @@ def run_calibrate(args) -> int:
     run, source = _run(args)
     if importlib.util.find_spec(f"inbetween_jax.models.{run.model}.calibrate") is None:
         raise UserError(f"{args.run_dir}: the {run.model} model has no out-of-distribution gate")
-    from inbetween_jax.models.ood import calibrate_run
+    from inbetween_jax.models.ood_runs import calibrate_run
     calibrate = importlib.import_module(f"inbetween_jax.models.{run.model}.calibrate").calibrate
     if args.kind is not None and "kind" not in inspect.signature(calibrate).parameters:
         raise UserError(f"{args.run_dir}: the {run.model} model's gate has one score (no --kind)")
@@ -81,7 +81,7 @@ def run_calibrate(args) -> int:
         module = importlib.import_module(f"inbetween_jax.models.{run.model}.calibrate")
         if not hasattr(module, "calibrate_additions") or args.kind is not None:
             raise UserError(f"{args.run_dir}: --keep-gate is for S-CVAE and CAE gates, without --kind")
-        from inbetween_jax.models.ood import calibrate_additions_run
+        from inbetween_jax.models.ood_runs import calibrate_additions_run
         print(json.dumps(calibrate_additions_run(args.run_dir, source), indent=1, default=float))
         return 0
     kwargs = {} if args.kind is None else {"kind": args.kind}

@@ -27,8 +27,7 @@ from inbetween_jax.errors import NPZ_READ_ERRORS
 
 __all__ = ["ContextBank", "TravelScore", "SpeedScore", "FloorSpeedScore", "Gate", "build_bank", "calibrate_gate",
            "held_out_ratios", "gated_ratio", "BLEND_WEIGHTS", "OOD_FILE", "gate_note", "save_gate", "load_gate",
-           "gated_records", "calibrate_run", "CALIBRATION_FILE", "run_gate", "calibration_worst_case",
-           "load_gate_array", "optional_gate_arrays", "calibrate_additions_run"]
+           "run_gate", "load_gate_array", "optional_gate_arrays"]
 
 OOD_FILE = "ood.npz"                              # the bank and gate in a run folder / shipped weights folder
 BLEND_WEIGHTS = (0.0, 0.25, 0.5, 0.75, 1.0)       # weights of the learned fill at which calibration scores windows
@@ -262,29 +261,37 @@ def save_gate(run_dir: str, bank, gate: Gate, summary: dict | None = None, array
     return path
 
 
-def load_gate(run_dir: str):
-    """``(ContextBank, Gate)`` from ``run_dir/ood.npz``, or None when the folder has none.
-
-    Raises:
-        RunError: the file exists but cannot be read (one line).
-    """
+def _read_ood(run_dir: str, read):
+    """``read(z)`` of the open ``run_dir/ood.npz``, or None when the folder has none; an unreadable file (or a
+    missing array ``read`` needs) is one line naming it (RunError)."""
     from inbetween_jax.train.run import RunError
     path = os.path.join(run_dir, OOD_FILE)
     if not os.path.exists(path):
         return None
     try:
         with np.load(path) as z:
-            if "travel_c" in z.files:
-                scorer = TravelScore(int(z["travel_num_joints"]), float(z["travel_c"]))
-            elif "speed_c" in z.files:
-                scorer = SpeedScore(float(z["speed_c"]))
-            elif "floor_c" in z.files:
-                scorer = FloorSpeedScore.from_arrays(z)
-            else:
-                scorer = ContextBank.from_arrays(z)
-            return scorer, Gate(float(z["gate_lo"]), float(z["gate_hi"]))
+            return read(z)
     except (*NPZ_READ_ERRORS, KeyError) as e:
         raise RunError(f"{path}: not a readable out-of-distribution gate ({type(e).__name__}: {e})") from None
+
+
+def load_gate(run_dir: str):
+    """``(ContextBank, Gate)`` from ``run_dir/ood.npz``, or None when the folder has none.
+
+    Raises:
+        RunError: the file exists but cannot be read (one line).
+    """
+    def read(z):
+        if "travel_c" in z.files:
+            scorer = TravelScore(int(z["travel_num_joints"]), float(z["travel_c"]))
+        elif "speed_c" in z.files:
+            scorer = SpeedScore(float(z["speed_c"]))
+        elif "floor_c" in z.files:
+            scorer = FloorSpeedScore.from_arrays(z)
+        else:
+            scorer = ContextBank.from_arrays(z)
+        return scorer, Gate(float(z["gate_lo"]), float(z["gate_hi"]))
+    return _read_ood(run_dir, read)
 
 
 def load_gate_array(run_dir: str, key: str, why: str) -> np.ndarray:
@@ -311,86 +318,11 @@ def optional_gate_arrays(run_dir: str, prefix: str, required: tuple = ()) -> dic
     Raises:
         RunError: the file exists but cannot be read (one line).
     """
-    from inbetween_jax.train.run import RunError
-    path = os.path.join(run_dir, OOD_FILE)
-    if not os.path.exists(path):
-        return None
-    try:
-        with np.load(path) as z:
-            if not all(k in z.files for k in required):
-                return None
-            return {k: np.asarray(z[k]) for k in z.files if k.startswith(prefix)}
-    except NPZ_READ_ERRORS as e:
-        raise RunError(f"{path}: not a readable out-of-distribution gate ({type(e).__name__}: {e})") from None
-
-
-CALIBRATION_FILE = "ood_calibration.json"        # per-window scores and ratios behind the gate (figures, tables)
-
-
-def calibrate_run(run_dir: str, source: str, **kwargs) -> dict:
-    """Calibrate the gate of the run in ``run_dir`` on its validation split (``models/<model>/calibrate.py``'s
-    ``calibrate``) and write ``ood.npz`` and ``ood_calibration.json`` (summary + per-window records) into it.
-    Returns the calibration's summary."""
-    import importlib
-    import json
-    from inbetween_jax.train.run import load_run
-    run = load_run(run_dir)
-    res = importlib.import_module(f"inbetween_jax.models.{run.model}.calibrate").calibrate(run, source, **kwargs)
-    save_gate(run_dir, res["bank"], res["gate"], res["summary"], res.get("arrays"))
-    tmp = os.path.join(run_dir, CALIBRATION_FILE + ".tmp")
-    with open(tmp, "w") as f:
-        json.dump({"model": run.model, "step": int(run.step), "source": source, "summary": res["summary"],
-                   "records": res["records"], **_extra_records(res)}, f)
-    os.replace(tmp, os.path.join(run_dir, CALIBRATION_FILE))
-    return res["summary"]
-
-
-def _extra_records(res: dict) -> dict:
-    """A calibration's records beside the gate's own (``context_records``: the S-CVAE's gaps inside clips)."""
-    return {k: v for k, v in res.items() if k.endswith("_records")}
-
-
-def calibrate_additions_run(run_dir: str, source: str) -> dict:
-    """Add (or redo) what a model's calibration adds to its gate (``models/<model>/calibrate.py``'s
-    ``calibrate_additions``: the S-CVAE's thresholds inside a clip, the CAE's k-NN cap) in ``run_dir``'s
-    ``ood.npz`` and ``ood_calibration.json``, keeping the gate itself as it is (``inbetween calibrate-gate RUN_DIR
-    --keep-gate``).  Returns the new summary numbers.
-
-    Raises:
-        RunError: the folder holds no calibrated gate (one line).
-    """
-    import importlib
-    import json
-    from inbetween_jax.train.run import RunError, load_run
-    run = load_run(run_dir)
-    path, cal_path = os.path.join(run_dir, OOD_FILE), os.path.join(run_dir, CALIBRATION_FILE)
-    if not (os.path.exists(path) and os.path.exists(cal_path)):
-        raise RunError(f"{run_dir}: no calibrated gate to add to (run `inbetween calibrate-gate {run_dir}` first)")
-    res = importlib.import_module(f"inbetween_jax.models.{run.model}.calibrate").calibrate_additions(run, source)
-    with np.load(path) as z:
-        arrays = {k: z[k] for k in z.files}
-    arrays.update({k: np.asarray(v) for k, v in res["arrays"].items()})
-    tmp = path + ".tmp.npz"
-    np.savez_compressed(tmp, **arrays)
-    with open(cal_path) as f:
-        cal = json.load(f)
-    cal["summary"].update(res["summary"])
-    cal.update(_extra_records(res))
-    with open(cal_path + ".tmp", "w") as f:
-        json.dump(cal, f)
-    os.replace(tmp, path)
-    os.replace(cal_path + ".tmp", cal_path)
-    return res["summary"]
-
-
-def gated_records(calibration: dict, gate) -> list:
-    """Records of a gate's calibration file (``ood_calibration.json``: the validation windows) at the weights
-    ``gate`` gives them (:func:`inbetween_jax.models.ood.gated_ratio`)."""
-    recs = calibration["records"]
-    w = gate.weight([r["score"] for r in recs]) * np.array([r.get("cap_weight", 1.0) for r in recs])
-    ratio = gated_ratio([r["ratios_at"] for r in recs], w)
-    return [{"name": r["name"], "frames": r["frames"], "ratio": float(x), "score": r["score"], "weight": float(wi)}
-            for r, x, wi in zip(recs, ratio, w)]
+    def read(z):
+        if not all(k in z.files for k in required):
+            return None
+        return {k: np.asarray(z[k]) for k in z.files if k.startswith(prefix)}
+    return _read_ood(run_dir, read)
 
 
 def run_gate(run_dir: str, enabled: bool):
@@ -407,17 +339,3 @@ def run_gate(run_dir: str, enabled: bool):
         raise RunError(f"{run_dir}: model.ood_gate is on but the folder holds no {OOD_FILE} (calibrate it with "
                        "`inbetween calibrate-gate RUN_DIR`)")
     return gate
-
-
-def calibration_worst_case(run_dir: str, gate, model: str, base: str, split: str = "validation subjects") -> list:
-    """Worst-case rows (:func:`inbetween_jax.evaluation.worst_case.worst_case_rows`, split ``split``) of the gate's
-    calibration windows in ``run_dir/ood_calibration.json``, scored at the weights the gate ((scorer, Gate)) gives
-    them; [] without a gate or that file."""
-    import json
-    from inbetween_jax.evaluation.worst_case import worst_case_rows
-    path = os.path.join(run_dir, CALIBRATION_FILE)
-    if gate is None or not os.path.exists(path):
-        return []
-    with open(path) as f:
-        cal = json.load(f)
-    return worst_case_rows(gated_records(cal, gate[1]), "per_window", cal.get("source", "cmu"), model, base, split)

@@ -11,7 +11,7 @@ def per_window_rows(positions, names, methods, data, runs, models) -> list:
     validation subjects from a gated run's ``ood_calibration.json`` (its calibration gaps at the gate's
     weights, ratio to the run's pre-fill)."""
     from inbetween_jax.evaluation.worst_case import worst_case_rows
-    from inbetween_jax.models.ood import calibration_worst_case
+    from inbetween_jax.models.ood_runs import calibration_worst_case
     out = []
     for m in methods:
         if m in ("linear", "hermite"):

@@ -56,7 +56,7 @@ def per_window_rows(trained, method, windows, data: str, lengths=(30, 50)) -> tu
     from inbetween_jax.evaluation.interaction import N_INPUT
     from inbetween_jax.evaluation.worst_case import worst_case_markdown, worst_case_rows
     from inbetween_jax.models.interaction.gate import interpolation_base
-    from inbetween_jax.models.ood import calibration_worst_case
+    from inbetween_jax.models.ood_runs import calibration_worst_case
     recs = []
     for L in lengths:
         b = windows.get(L)

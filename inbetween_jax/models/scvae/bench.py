@@ -36,7 +36,7 @@ def run(source, results_dir: str, run_dir: str | None, quick: bool = False) -> d
     from inbetween_jax.data import l2p_stats, load_dataset, resolve_source
     from inbetween_jax.evaluation import TABLE_COLUMNS, baseline_table1, flat_rows, markdown_table, transition_metrics
     from inbetween_jax.evaluation.worst_case import worst_case_markdown, worst_case_rows
-    from inbetween_jax.models.ood import calibration_worst_case
+    from inbetween_jax.models.ood_runs import calibration_worst_case
     from inbetween_jax.models.scvae import infer
     from inbetween_jax.models.scvae.context import HERMITE_NAME, IN_CLIP_NAME, in_clip
     from inbetween_jax.models.scvae.gate import gate_windows
