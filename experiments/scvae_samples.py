@@ -2,8 +2,9 @@
 and best-of-N error, the share that reach the keyframe, foot slide (inbetween_jax/models/scvae/samples.py).
 
     python experiments/scvae_samples.py RUN_DIR [RUN_DIR ...] [--source cmu] [--samples 10] [--set KEY=VALUE]
+                                        [--split val-activities]
 
-Prints one markdown table per run and writes RUN_DIR/samples_val.json.  ``--set`` changes inference switches
+Prints one markdown table per run and writes RUN_DIR/samples_val.json (``--split S``: samples_S.json).  ``--set`` changes inference switches
 (e.g. model.ood_gate=false, model.motion_spread=4) without retraining.
 """
 import argparse
@@ -22,6 +23,7 @@ p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("run_dirs", nargs="+")
 p.add_argument("--source", default="cmu")
 p.add_argument("--samples", type=int, default=10)
+p.add_argument("--split", default=None, help="held-out split (default: the validation split of the run's)")
 p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
 a = p.parse_args()
 for run_dir in a.run_dirs:
@@ -29,10 +31,11 @@ for run_dir in a.run_dirs:
     run = load_run(run_dir)
     full = _added_keys(run.config, dataclasses.asdict(get_config(run.preset)))     # switches newer than the run
     run = dataclasses.replace(run, config=apply_overrides(full, a.set))
-    rows = validation_rows(run, a.source, num_samples=a.samples)
+    rows = validation_rows(run, a.source, num_samples=a.samples, split=a.split)
     cols = COLUMNS + RATIO_COLUMNS
-    print(markdown_table(rows, cols, f"{run_dir} {' '.join(a.set)}: validation subjects, {a.samples} samples "
+    where = a.split or "validation subjects"
+    print(markdown_table(rows, cols, f"{run_dir} {' '.join(a.set)}: {where}, {a.samples} samples "
                                      f"({time.time() - t0:.0f} s)"))
     tag = "_".join(s.replace("model.", "").replace("=", "") for s in a.set)
-    with open(os.path.join(run_dir, f"samples_val{'_' + tag if tag else ''}.json"), "w") as f:
+    with open(os.path.join(run_dir, f"samples_{a.split or 'val'}{'_' + tag if tag else ''}.json"), "w") as f:
         json.dump({"overrides": a.set, "rows": rows}, f, indent=1)

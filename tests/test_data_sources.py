@@ -343,6 +343,8 @@ def test_activity_split_leaves_whole_activity_subjects_out(cmu_env):
     from inbetween_jax.banks import run_fit_split               # a run's bank leaves the same subjects out
     for own in ("fit-activities", "fit-subjects"):
         assert run_fit_split(SimpleNamespace(config={"train": {"split": own}}), "fit") == own
+    from inbetween_jax.data.datasets import window_settings      # windows as the training files' (was refused)
+    assert window_settings("cmu", "val-activities") == window_settings("cmu", "fit-activities")
     assert run_fit_split(SimpleNamespace(config={"train": {"split": "fit"}}), "fit") == "fit"
 
 

@@ -153,7 +153,8 @@ def is_fit_split(split: str) -> bool:
 
 def window_settings(source: str, split: str, fps: float = WORKING_FPS) -> dict:
     """Window length, offset, past frames, root forward axis, contact threshold and frame rate of a split."""
-    spec = lafan1.split_spec("train" if split in HELD_OUT_SPLITS else split)
+    part_of_train = split in HELD_OUT_SPLITS or split == "val-activities"    # windows as the training files'
+    spec = lafan1.split_spec("train" if part_of_train else split)
     if is_lafan1(source):
         forward, velfactor = lafan1.ROOT_FORWARD_AXIS, lafan1.CONTACT_VELFACTOR
     else:

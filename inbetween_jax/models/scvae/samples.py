@@ -62,15 +62,17 @@ def length_rows(windows, n_past: int, n: int, x_mean, x_std, variants) -> list:
     return rows
 
 
-def validation_rows(run, source: str, lengths=(10, 30, 50), n_past: int = 10, num_samples: int = NUM_SAMPLES) -> list:
+def validation_rows(run, source: str, lengths=(10, 30, 50), n_past: int = 10, num_samples: int = NUM_SAMPLES,
+                    split: str | None = None) -> list:
     """:func:`samples_rows` on the validation split of the run's training data (``train.split=fit-subjects``:
-    whole held-out subjects), 65-frame windows at offset 20, L2P statistics of those windows."""
+    whole held-out subjects; ``split``: another held-out split, e.g. ``val-activities`` for a run trained on
+    ``fit-activities``), 65-frame windows at offset 20, L2P statistics of those windows."""
     from inbetween_jax.data import l2p_stats, load_dataset
     from inbetween_jax.data.datasets import val_split_of
     from inbetween_jax.models.scvae import infer
     trained = infer.load(run)
-    split = run.config.get("train", {}).get("split", "fit")
-    val = load_dataset(source, val_split_of(split), window=n_past + max(lengths) + 5, offset=20)
+    val = load_dataset(source, split or val_split_of(run.config.get("train", {}).get("split", "fit")),
+                       window=n_past + max(lengths) + 5, offset=20)
     x_mean, x_std = l2p_stats(val.global_pose()[1])
     lengths = [n for n in lengths if n <= trained.cfg.data.trans_max]
     return samples_rows(trained, val, lengths, n_past, x_mean, x_std, f"S-CVAE ({run.preset})", num_samples)
