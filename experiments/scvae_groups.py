@@ -1,7 +1,7 @@
 """Where the S-CVAE's network helps: its fill alone (no gate, no sampled mode) against Slerp, per CMU activity
 group and length, on any split of the ``cmu`` source -- its own training subjects (``fit-subjects``: what it
 learned at all) or held-out ones -- with the share of windows its two-keyframe gate would send back to Slerp
-(weight < 0.5) and the network's ratio on those windows.
+(weight < 0.5), the network's ratio on those windows and the gated fill's ratio.
 
     python experiments/scvae_groups.py [RUN_DIR] [--split fit-subjects]
 
@@ -16,9 +16,10 @@ import numpy as np
 
 from inbetween_jax.data import load_dataset
 from inbetween_jax.data.activities import activity_group
+from inbetween_jax.models.ood import load_gate
 from inbetween_jax.models.scvae import infer
 from inbetween_jax.models.scvae.bench import per_frame_error
-from inbetween_jax.models.scvae.gate import keyframe_context, slerp_base
+from inbetween_jax.models.scvae.gate import gate_windows, keyframe_context, slerp_base
 from inbetween_jax.shipped import shipped_run
 from inbetween_jax.train.run import load_run
 
@@ -30,7 +31,8 @@ t0 = time.time()
 run = load_run(a.run_dir) if a.run_dir else shipped_run("scvae")
 trained = infer.load(run)
 fa = tuple(trained.extra.get("forward_axis") or trained.skeleton.forward_axis())
-scorer, gate = trained.gate
+gate_pair = trained.gate or load_gate(run.run_dir)          # a run whose run.json leaves model.ood_gate off
+scorer, gate = gate_pair
 w = load_dataset("cmu", a.split, window=65, offset=40)
 rows = collections.defaultdict(list)
 for n in (10, 30, 50):
@@ -41,15 +43,19 @@ for n in (10, 30, 50):
     bq, br = slerp_base(*keys, n)
     base = per_frame_error(w, 10, n, bq[None], br[None])[0].mean(-1)
     weight = gate.weight(scorer.score(keyframe_context(*keys, n, w.skeleton, fa)))
+    gq, gr, _, _ = gate_windows(gate_pair, w, k0, k1, s["q"], s["r"], fa)
+    gated = per_frame_error(w, 10, n, gq, gr)[0].mean(-1)
     for i, name in enumerate(w.seq_names):
-        rows[(activity_group(name.split("@")[0]), n)].append((net[i] / max(base[i], 1e-6), weight[i]))
+        b = max(base[i], 1e-6)
+        rows[(activity_group(name.split("@")[0]), n)].append((net[i] / b, weight[i], gated[i] / b))
 print(f"**{a.run_dir or 'shipped S-CVAE'}: {a.split}, {len(w)} windows, network alone over Slerp** "
       f"({time.time() - t0:.0f} s)\n")
-print("| group | frames | windows | mean | median | gate weight (mean) | gate < 0.5 | network there (mean, median) |")
-print("|---|---|---|---|---|---|---|---|")
+print("| group | frames | windows | mean | median | gate weight (mean) | gate < 0.5 | network there (mean, median) "
+      "| gated fill (mean) |")
+print("|---|---|---|---|---|---|---|---|---|")
 for (g, n), v in sorted(rows.items()):
     v = np.array(v)
     lo = v[:, 1] < 0.5
     there = f"{v[lo, 0].mean():.3f}, {np.median(v[lo, 0]):.3f}" if lo.any() else "-"
     print(f"| {g} | {n} | {len(v)} | {v[:, 0].mean():.3f} | {np.median(v[:, 0]):.3f} | {v[:, 1].mean():.2f} | "
-          f"{lo.mean():.0%} | {there} |")
+          f"{lo.mean():.0%} | {there} | {v[:, 2].mean():.3f} |")
