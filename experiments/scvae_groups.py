@@ -19,7 +19,7 @@ from inbetween_jax.data.activities import activity_group
 from inbetween_jax.models.ood import load_gate
 from inbetween_jax.models.scvae import infer
 from inbetween_jax.models.scvae.bench import per_frame_error
-from inbetween_jax.models.scvae.gate import gate_windows, keyframe_context, slerp_base
+from inbetween_jax.models.scvae.gate import gate_windows, slerp_base
 from inbetween_jax.shipped import shipped_run
 from inbetween_jax.train.run import load_run
 
@@ -32,7 +32,6 @@ run = load_run(a.run_dir) if a.run_dir else shipped_run("scvae")
 trained = infer.load(run)
 fa = tuple(trained.extra.get("forward_axis") or trained.skeleton.forward_axis())
 gate_pair = trained.gate or load_gate(run.run_dir)          # a run whose run.json leaves model.ood_gate off
-scorer, gate = gate_pair
 w = load_dataset("cmu", a.split, window=65, offset=40)
 rows = collections.defaultdict(list)
 for n in (10, 30, 50):
@@ -42,8 +41,7 @@ for n in (10, 30, 50):
     net = per_frame_error(w, 10, n, s["q"], s["r"])[0].mean(-1)
     bq, br = slerp_base(*keys, n)
     base = per_frame_error(w, 10, n, bq[None], br[None])[0].mean(-1)
-    weight = gate.weight(scorer.score(keyframe_context(*keys, n, w.skeleton, fa)))
-    gq, gr, _, _ = gate_windows(gate_pair, w, k0, k1, s["q"], s["r"], fa)
+    gq, gr, _, weight = gate_windows(gate_pair, w, k0, k1, s["q"], s["r"], fa)
     gated = per_frame_error(w, 10, n, gq, gr)[0].mean(-1)
     for i, name in enumerate(w.seq_names):
         b = max(base[i], 1e-6)

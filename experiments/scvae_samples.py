@@ -4,8 +4,8 @@ and best-of-N error, the share that reach the keyframe, foot slide (inbetween_ja
     python experiments/scvae_samples.py RUN_DIR [RUN_DIR ...] [--source cmu] [--samples 10] [--set KEY=VALUE]
                                         [--split val-activities]
 
-Prints one markdown table per run and writes RUN_DIR/samples_val.json (``--split S``: samples_S.json).  ``--set`` changes inference switches
-(e.g. model.ood_gate=false, model.motion_spread=4) without retraining.
+Prints one markdown table per run and writes RUN_DIR/samples_val.json (``--split S``: samples_S.json).
+``--set`` changes inference switches (e.g. model.ood_gate=false, model.motion_spread=4) without retraining.
 """
 import argparse
 import dataclasses

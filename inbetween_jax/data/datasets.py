@@ -151,10 +151,15 @@ def is_fit_split(split: str) -> bool:
     return split in ("fit", "fit-subjects", "fit-activities")
 
 
+def _part_of_train(split: str) -> bool:
+    """Whether ``split``'s files are (some of) the training files: ``train`` itself, a split holding files out
+    (:data:`HELD_OUT_SPLITS`) or ``val-activities``."""
+    return split in ("train", "val-activities") or split in HELD_OUT_SPLITS
+
+
 def window_settings(source: str, split: str, fps: float = WORKING_FPS) -> dict:
     """Window length, offset, past frames, root forward axis, contact threshold and frame rate of a split."""
-    part_of_train = split in HELD_OUT_SPLITS or split == "val-activities"    # windows as the training files'
-    spec = lafan1.split_spec("train" if part_of_train else split)
+    spec = lafan1.split_spec("train" if _part_of_train(split) else split)
     if is_lafan1(source):
         forward, velfactor = lafan1.ROOT_FORWARD_AXIS, lafan1.CONTACT_VELFACTOR
     else:
@@ -225,7 +230,7 @@ def load_dataset(source: Optional[str] = None, split: str = "train", window: Opt
 def _read_motions(source: str, split: str, fps: float, unit_scale: Optional[float]):
     """(motions at ``fps``, the resampling notice or None); one skeleton and one unit per folder."""
     files = split_files(source, split)
-    if source == sources.CMU and (split in ("train", "val-activities") or split in HELD_OUT_SPLITS):
+    if source == sources.CMU and _part_of_train(split):
         return sources.read_cmu_train(files, split, fps)
     motions, rates = [], Counter()
     scale0 = None

@@ -10,7 +10,7 @@ import os
 
 import numpy as np
 
-from inbetween_jax.models.ood import OOD_FILE, gated_ratio, save_gate
+from inbetween_jax.models.ood import OOD_FILE, gated_ratio, optional_gate_arrays, save_gate
 
 __all__ = ["CALIBRATION_FILE", "calibrate_run", "calibrate_additions_run", "gated_records", "calibration_worst_case"]
 
@@ -56,9 +56,8 @@ def calibrate_additions_run(run_dir: str, source: str) -> dict:
     path, cal_path = os.path.join(run_dir, OOD_FILE), os.path.join(run_dir, CALIBRATION_FILE)
     if not (os.path.exists(path) and os.path.exists(cal_path)):
         raise RunError(f"{run_dir}: no calibrated gate to add to (run `inbetween calibrate-gate {run_dir}` first)")
+    arrays = optional_gate_arrays(run_dir, "")          # every array; unreadable: one line, before the calibration
     res = importlib.import_module(f"inbetween_jax.models.{run.model}.calibrate").calibrate_additions(run, source)
-    with np.load(path) as z:
-        arrays = {k: z[k] for k in z.files}
     arrays.update({k: np.asarray(v) for k, v in res["arrays"].items()})
     tmp = path + ".tmp.npz"
     np.savez_compressed(tmp, **arrays)
