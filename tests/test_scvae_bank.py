@@ -341,7 +341,8 @@ def test_each_neighbour_and_the_sampled_mode(bank, tmp_path):
     np.testing.assert_allclose(er[:, 0], one[1], atol=1e-6)
     np.testing.assert_allclose(np.abs(np.sum(eq[:, 0] * one[0], -1)), 1.0, atol=1e-6)
     assert np.abs(er[:, 1] - er[:, 0]).max() > 0.1 and np.abs(er[:, 2] - er[:, 1]).max() > 0.1
-    run_dir = _shipped_copy(tmp_path, bank_sample_weight=1.0, timing_spread=0.0)     # the bank part alone
+    run_dir = _shipped_copy(tmp_path, bank_sample_weight=1.0, timing_spread=0.0,
+                            timing_spread_fallback=0.0)                          # the bank part alone
     with pytest.raises(RunError, match="needs bank.npz, which is missing"):
         infer.load(load_run(run_dir))
     bank.save(os.path.join(run_dir, BANK_FILE))
@@ -370,7 +371,8 @@ def test_gated_sampled_mode_moves_each_sample_by_the_gates_weight(bank, tmp_path
     samples stay the fill."""
     from inbetween_jax.models.scvae import infer
     from inbetween_jax.train.run import load_run
-    run_dir = _shipped_copy(tmp_path, bank_sample_weight=1.0, bank_sample_gated=True, timing_spread=0.0)
+    run_dir = _shipped_copy(tmp_path, bank_sample_weight=1.0, bank_sample_gated=True, timing_spread=0.0,
+                            timing_spread_fallback=0.0)
     bank.save(os.path.join(run_dir, BANK_FILE))
     trained = infer.load(load_run(run_dir))
     wins = load_dataset("embedded", "benchmark").take(slice(0, 12))

@@ -45,6 +45,32 @@ def test_a_constant_rate_path_is_replayed_on_the_warped_clock():
     assert early > r[0, 0, L // 2, 0] > late                                    # a > 0 earlier, a < 0 later
 
 
+def test_a_spread_per_window_retimes_each_window_as_its_own_spread_would():
+    """``spread`` (B,): window b comes out as ``retimed`` at the number ``spread[b]`` gives it alone, here on
+    three copies of the constant-rate path at spreads 0 (unchanged), 0.3 and 0.6 (closed form as above)."""
+    kq, kr, tq, tr, q, r = _linear_path()
+    rep = lambda x, ax: np.repeat(x, 3, axis=ax)                                # noqa: E731
+    out_q, out_r = retimed(rep(kq, 0), rep(kr, 0), rep(tq, 0), rep(tr, 0), rep(q, 1), rep(r, 1),
+                           np.array([0.0, 0.3, 0.6]))
+    np.testing.assert_allclose(out_r[:, 0], r[:, 0])
+    np.testing.assert_allclose(out_q[:, 0], q[:, 0])
+    t = np.arange(1, L + 1) / (L + 1)
+    for b, spread in ((1, 0.3), (2, 0.6)):
+        for s, a in enumerate(timing_amplitudes(S, spread)):
+            np.testing.assert_allclose(out_r[s, b, :, 0], 100 * (t + a * np.sin(np.pi * t) / np.pi), atol=1e-9)
+
+
+def test_the_spread_widens_where_the_gate_falls_back():
+    """``sample_spread``: ``timing_spread`` where the gate keeps the network (weight 1), the fallback spread where
+    it falls back to Slerp (weight 0), linear between; off (0) or without a gate weight: ``timing_spread``."""
+    import types
+    from inbetween_jax.models.scvae.bank import sample_spread
+    cfg = types.SimpleNamespace(timing_spread=0.25, timing_spread_fallback=0.45)
+    np.testing.assert_allclose(sample_spread(cfg, np.array([1.0, 0.0, 0.5, 1.3])), [0.25, 0.45, 0.35, 0.25])
+    assert sample_spread(cfg, 0.0) == pytest.approx(0.45) and sample_spread(cfg) == 0.25
+    assert sample_spread(types.SimpleNamespace(timing_spread=0.25, timing_spread_fallback=0.0), 0.0) == 0.25
+
+
 def test_zero_spread_changes_nothing():
     kq, kr, tq, tr, q, r = _linear_path()
     out_q, out_r = retimed(kq, kr, tq, tr, q, r, 0.0)
@@ -54,18 +80,20 @@ def test_zero_spread_changes_nothing():
 
 def test_shipped_samples_are_retimed_more_between_two_keyframes_than_inside_a_clip():
     """Through ``infill_between`` with the shipped S-CVAE on a real clip: samples 1-9 get timing variants (sample 0
-    stays), at ``timing_spread`` between two keyframes alone and at the smaller ``timing_spread_in_clip`` where the
-    frames beside the keyframes are known (they pin the timing); with both spreads 0 nothing is retimed."""
+    stays), at ``timing_spread`` between two keyframes alone (up to ``timing_spread_fallback`` as the gate falls
+    back to Slerp) and at the smaller ``timing_spread_in_clip`` where the frames beside the keyframes are known
+    (they pin the timing); with the spreads 0 nothing is retimed."""
     import dataclasses
     from inbetween_jax.data import load_motions
     from inbetween_jax.models.scvae import infer
+    from inbetween_jax.models.scvae.bank import sample_spread
     from inbetween_jax.models.scvae.context import AFTER, BEFORE
     from inbetween_jax.shipped import shipped_run
     trained = infer.load(shipped_run("scvae"))
     mc = trained.cfg.model
     assert mc.timing_spread > mc.timing_spread_in_clip > 0, "the shipped S-CVAE retimes its samples, less in a clip"
     off = dataclasses.replace(trained, cfg=dataclasses.replace(trained.cfg, model=dataclasses.replace(
-        mc, timing_spread=0.0, timing_spread_in_clip=0.0)))
+        mc, timing_spread=0.0, timing_spread_in_clip=0.0, timing_spread_fallback=0.0)))
     m = load_motions("embedded", "test")[0]
     k0, n = 5, 20
     k1 = k0 + n + 1
@@ -80,9 +108,12 @@ def test_shipped_samples_are_retimed_more_between_two_keyframes_than_inside_a_cl
             e.update(zip(AFTER, (m.local_quats[k1 + 1], m.root_pos[k1 + 1], m.local_quats[k1 + 2],
                                  m.root_pos[k1 + 2])))
         return s, e
-    for sides, spread in ((False, mc.timing_spread), (True, mc.timing_spread_in_clip)):
+    for sides in (False, True):
         on, plain = (infer.infill_between(t, m.skeleton, *keys(sides), n, S, 0, fa) for t in (trained, off))
         assert on["context"] == ("none" if not sides else "both sides")
+        # between two keyframes the spread widens as the gate falls back (bank.sample_spread); inside a clip fixed
+        spread = mc.timing_spread_in_clip if sides else sample_spread(mc, on["gate_weight"])
+        assert sides or mc.timing_spread <= spread <= mc.timing_spread_fallback
         np.testing.assert_allclose(on["r"][0], plain["r"][0], atol=1e-6)
         assert np.abs(on["q"][1:] - plain["q"][1:]).max() > 1e-3                     # samples 1-9 retimed
         np.testing.assert_allclose(np.abs(on["timing_by_part"]).max(), spread)

@@ -33,12 +33,13 @@ from inbetween_jax.models.scvae.timing import retimed
 
 __all__ = ["BANK_FILE", "SWITCHES", "MIRROR_TAG", "TransitionBank", "keyframe_space", "knn_transition",
            "knn_base_path", "pad_base_path", "blend", "sample_blend", "bank_sample_blend",
-           "sampled_mode", "sample_weight", "bank_enabled", "bank_searched", "bank_needed",
+           "sampled_mode", "sample_weight", "sample_spread", "bank_enabled", "bank_searched", "bank_needed",
            "check_mirror"]
 
 BANK_FILE = "bank.npz"
 SWITCHES = ("model.bank_k", "model.bank_weight", "model.bank_tau", "model.bank_sample_weight",          # inference only
-            "model.timing_spread", "model.timing_parts", "model.timing_spread_in_clip")
+            "model.timing_spread", "model.timing_parts", "model.timing_spread_in_clip",
+            "model.timing_spread_fallback")
 CACHED_LENGTHS = 8        # transition lengths whose match features a bank keeps (about 30 MB each for CMU)
 QUERY_CHUNK = 64          # queries warped at once (memory: chunk x k x frames x joints x 4)
 MAX_TURN = np.pi          # bank transitions whose root turns further than this (radians) are not candidates
@@ -345,15 +346,16 @@ def sample_blend(q, r, each_q, each_r, weight: float):
     return q, r
 
 
-def bank_sample_blend(bank: TransitionBank, key_q, key_r, tgt_q, tgt_r, q, r, weight: float, timing: float = 0.0,
+def bank_sample_blend(bank: TransitionBank, key_q, key_r, tgt_q, tgt_r, q, r, weight: float, timing=0.0,
                       parts=None):
     """:func:`sample_blend` of samples q (S, B, L, J, 4), r (S, B, L, 3) of the in-betweens between keyframes
     ``key`` and ``tgt`` (key_q, tgt_q (B, J, 4); key_r, tgt_r (B, 3), the samples' space) with the bank's S - 1
-    nearest transitions (:func:`knn_transition` with ``each``); then, with ``timing`` > 0, each sample s >= 1
-    retimed (:func:`~.timing.retimed`; ``parts``: (J,) body part labels for part-wise timing, or None)."""
+    nearest transitions (:func:`knn_transition` with ``each``); then, with ``timing`` > 0 (a number or (B,), see
+    :func:`sample_spread`), each sample s >= 1 retimed (:func:`~.timing.retimed`; ``parts``: (J,) body part
+    labels for part-wise timing, or None)."""
     each_q, each_r, _ = knn_transition(bank, key_q, key_r, tgt_q, tgt_r, q.shape[2], q.shape[0] - 1, each=True)
     q, r = sample_blend(q, r, each_q, each_r, weight)
-    return retimed(key_q, key_r, tgt_q, tgt_r, q, r, timing, parts) if timing > 0 else (q, r)
+    return retimed(key_q, key_r, tgt_q, tgt_r, q, r, timing, parts) if np.any(np.asarray(timing) > 0) else (q, r)
 
 
 def sampled_mode(model_cfg, num_samples: int) -> bool:
@@ -386,3 +388,16 @@ def sample_weight(cfg, gate_weight=None):
         return cfg.bank_sample_weight
     w = cfg.bank_sample_weight * np.asarray(gate_weight, np.float64)
     return float(w) if w.ndim == 0 else w[:, None, None]
+
+
+def sample_spread(cfg, gate_weight=None):
+    """The sampled mode's timing spread between two keyframes alone: ``cfg.timing_spread``; with
+    ``cfg.timing_spread_fallback`` > 0 and the gate's weight (a number or (B,) array), lerped from the fallback
+    spread (weight 0: the fill is Slerp, whose timing the keyframes pin least) to ``timing_spread`` (weight 1: the
+    network's, which carries timing of its own).  Returns a number or a (B,) array."""
+    fallback = float(getattr(cfg, "timing_spread_fallback", 0.0))
+    if fallback <= 0 or gate_weight is None:
+        return cfg.timing_spread
+    w = np.clip(np.asarray(gate_weight, np.float64), 0.0, 1.0)
+    out = fallback + (cfg.timing_spread - fallback) * w
+    return float(out) if out.ndim == 0 else out

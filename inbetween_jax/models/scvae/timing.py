@@ -6,6 +6,8 @@ sampled mode is replayed on a warped clock ``u(t) = t + a sin(pi t) / pi`` (t in
 other; monotone for ``|a| < 1``; ``a > 0`` moves the motion earlier).  With ``timing_parts`` each body part has
 its own amplitude: half the samples are retimed whole, the other half move the arms against the legs or one side
 against the other (:func:`part_amplitudes`).  Sample 0 is never changed, and neither are the keyframes.
+The spread may differ per keyframe pair: ``model.timing_spread_fallback`` widens it where the out-of-distribution
+gate falls back to Slerp (:func:`~.bank.sample_spread`).
 
 NumPy only; shapes: S samples, B keyframe pairs, L frames strictly between the keyframes, J joints.
 """
@@ -101,26 +103,29 @@ def body_parts(skeleton) -> np.ndarray:
     return parts
 
 
-def retimed(key_q, key_r, tgt_q, tgt_r, q, r, spread: float, parts=None):
+def retimed(key_q, key_r, tgt_q, tgt_r, q, r, spread, parts=None):
     """Sample s of q (S, B, L, J, 4), r (S, B, L, 3) -- the frames strictly between keyframes key (B, J, 4) /
     (B, 3) and tgt -- replayed along the warped time of :func:`part_amplitudes` (``parts`` (J,) :func:`body_parts`
     labels: each joint on its part's clock, the root on the torso's; None: the whole body on
-    :func:`timing_amplitudes`' clock), slerping / lerping between the frames it falls between.  Sample 0 is
-    unchanged.  Returns float64 arrays of q's and r's shapes."""
+    :func:`timing_amplitudes`' clock), slerping / lerping between the frames it falls between.  ``spread``: a
+    number, or (B,) one per keyframe pair.  Sample 0 is unchanged.  Returns float64 arrays of q's and r's shapes."""
     q, r = np.array(q, np.float64), np.array(r, np.float64)
-    n_s, _, length, n_j = q.shape[:4]
+    n_s, n_b, length, n_j = q.shape[:4]
     joint_part = np.zeros(n_j, np.int64) if parts is None else np.asarray(parts, np.int64)
-    amps = part_amplitudes(n_s, spread, parts is not None)[:, joint_part]               # (S, J)
+    spreads = np.minimum(np.broadcast_to(np.asarray(spread, np.float64), (n_b,)), 0.95)
+    amps = part_amplitudes(n_s, 0.5, parts is not None)[:, joint_part] / 0.5      # (S, J) per unit spread (linear)
     t = np.arange(1, length + 1) / (length + 1)
     for s in range(1, n_s):
         fq = np.concatenate([np.asarray(key_q, np.float64)[:, None], q[s], np.asarray(tgt_q, np.float64)[:, None]], 1)
         fr = np.concatenate([np.asarray(key_r, np.float64)[:, None], r[s], np.asarray(tgt_r, np.float64)[:, None]], 1)
-        tau = (t[:, None] + amps[s][None] * np.sin(np.pi * t)[:, None] / np.pi) * (length + 1)    # (L, J)
+        a = spreads[:, None, None] * amps[s][None, None]                                     # (B, 1, J)
+        tau = (t[None, :, None] + a * np.sin(np.pi * t)[None, :, None] / np.pi) * (length + 1)    # (B, L, J)
         lo = np.clip(np.floor(tau).astype(int), 0, length)
         frac = tau - lo
-        q0 = np.take_along_axis(fq, lo[None, :, :, None], 1)
-        q1 = np.take_along_axis(fq, lo[None, :, :, None] + 1, 1)
-        q[s] = quat_slerp(q0, quat_align(q1, q0), frac[None])
-        lr, fr_ = lo[:, 0], frac[:, 0]                                                     # the root: joint 0's clock
-        r[s] = fr[:, lr] + fr_[None, :, None] * (fr[:, lr + 1] - fr[:, lr])
+        q0 = np.take_along_axis(fq, lo[..., None], 1)
+        q1 = np.take_along_axis(fq, lo[..., None] + 1, 1)
+        q[s] = quat_slerp(q0, quat_align(q1, q0), frac)
+        lr, fr_ = lo[:, :, :1], frac[:, :, :1]                                             # the root: joint 0's clock
+        r0 = np.take_along_axis(fr, lr, 1)
+        r[s] = r0 + fr_ * (np.take_along_axis(fr, lr + 1, 1) - r0)
     return q, r
