@@ -172,3 +172,26 @@ def test_a_model_whose_base_continues_the_start_gets_the_end_side_only():
     np.testing.assert_allclose(a["r"], b["r"], atol=1e-9)             # the start side's frames are not used
     c = infer.infill_between(_switch(trained, ood_gate=False), m.skeleton, two, e, n, 1, 0, fa)
     assert np.abs(c["r"] - a["r"]).max() > 1e-3                        # without base_velocity they are
+
+
+def test_the_one_sided_path_reads_no_frame_after_the_end():
+    """``in_clip(use_after=False)`` (experiments/scvae_past_frames.py): moving the two frames after the end keyframe
+    changes the two-sided path and not the one continuing the frames before the start, which still leaves Slerp."""
+    from inbetween_jax.data import load_dataset
+    from inbetween_jax.models.scvae.config import ModelConfig
+    from inbetween_jax.models.scvae.context import in_clip
+    from inbetween_jax.models.scvae.gate import slerp_base
+    wins = load_dataset("embedded", "benchmark").take(slice(0, 4))
+    moved = wins.local_quats.copy(), wins.root_pos.copy()
+    moved[1][:, 41:43] += np.array([30.0, 0.0, -20.0])
+    other = dataclasses.replace(wins, local_quats=moved[0], root_pos=moved[1])
+    cfg = ModelConfig(context_damping=0.1)
+    q = np.broadcast_to(wins.local_quats[None, :, 10:40], (1, 4, 30) + wins.local_quats.shape[2:])
+    r = np.broadcast_to(wins.root_pos[None, :, 10:40], (1, 4, 30, 3))
+    one, one_moved = (in_clip(w, 10, 30, q, r, cfg, use_after=False) for w in (wins, other))
+    two, two_moved = (in_clip(w, 10, 30, q, r, cfg) for w in (wins, other))
+    np.testing.assert_allclose(one[3], one_moved[3])
+    np.testing.assert_allclose(one[1], one_moved[1])
+    assert np.abs(two[3] - two_moved[3]).max() > 1.0
+    sr = slerp_base(wins.local_quats[:, 9], wins.root_pos[:, 9], wins.local_quats[:, 40], wins.root_pos[:, 40], 30)[1]
+    assert np.abs(one[3][0] - sr).max() > 0.1                                  # it does continue the start's motion

@@ -124,19 +124,20 @@ def context_kind(start: dict, end: dict) -> str:
             (False, False): "none"}[(before, after)]
 
 
-def in_clip(windows, n_past: int, n_trans: int, q, r, cfg):
+def in_clip(windows, n_past: int, n_trans: int, q, r, cfg, use_after: bool = True):
     """The bench's in-clip rows: samples q (S, B, L, J, 4), r (S, B, L, 3) of the transitions after frame
     ``n_past - 1`` of B windows moved onto the Hermite path through the frames before the start and after the end
-    keyframe (two on each side, where the windows hold them).  Returns (q, r, hermite_q (1, B, L, J, 4),
-    hermite_r (1, B, L, 3)), float64: the moved samples and the Hermite path alone (cfg: ModelConfig, its
-    ``context_*`` switches)."""
+    keyframe (two on each side, where the windows hold them; ``use_after`` False: the frames before the start
+    only, as ``infill`` at a clip's end).  Returns (q, r, hermite_q (1, B, L, J, 4), hermite_r (1, B, L, 3)),
+    float64: the moved samples and the Hermite path alone (cfg: ModelConfig, its ``context_*`` switches)."""
     from inbetween_jax.models.scvae.gate import slerp_base
     lq, rp = np.asarray(windows.local_quats, np.float64), np.asarray(windows.root_pos, np.float64)
     k0, k1 = n_past - 1, n_past + n_trans
     sq, sr = slerp_base(lq[:, k0], rp[:, k0], lq[:, k1], rp[:, k1], n_trans)
     keys = (lq[:, k0], rp[:, k0], lq[:, k1], rp[:, k1])
     before = (lq[:, k0 - 1], rp[:, k0 - 1], lq[:, k0 - 2], rp[:, k0 - 2]) if k0 >= 2 else None
-    after = (lq[:, k1 + 1], rp[:, k1 + 1], lq[:, k1 + 2], rp[:, k1 + 2]) if k1 + 2 < lq.shape[1] else None
+    after = ((lq[:, k1 + 1], rp[:, k1 + 1], lq[:, k1 + 2], rp[:, k1 + 2]) if use_after and k1 + 2 < lq.shape[1]
+             else None)
     nb = neighbours(cfg, windows.skeleton, *keys, before, after)
     dq, dr = context_offsets(*keys, n_trans, cfg.context_damping, *nb)
     mq, mr = onto_context(q, r, sq, sr, dq, dr)
