@@ -22,7 +22,7 @@ from inbetween_jax.evaluation import markdown_table, transition_metrics
 from inbetween_jax.models.scvae import infer
 from inbetween_jax.models.scvae.context import in_clip
 from inbetween_jax.models.scvae.gate import gate_windows
-from inbetween_jax.shipped import shipped_run
+from inbetween_jax.shipped import config_with_overrides, shipped_run
 from inbetween_jax.train.run import load_run
 
 N_PAST = 10
@@ -34,12 +34,7 @@ p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="
 a = p.parse_args()
 t0 = time.time()
 run = load_run(a.run_dir) if a.run_dir else shipped_run("scvae")
-if a.set:
-    from inbetween_jax.models.scvae.config import get_config
-    from inbetween_jax.train.config import apply_overrides
-    from inbetween_jax.train.run import _added_keys
-    run = dataclasses.replace(run, config=apply_overrides(_added_keys(run.config, dataclasses.asdict(
-        get_config(run.preset))), a.set))
+run = dataclasses.replace(run, config=config_with_overrides(run.model, run.config, a.set))
 trained = infer.load(run)
 if trained.gate is None:
     raise SystemExit(f"{a.run_dir or 'the shipped S-CVAE'}: no out-of-distribution gate (ood.npz); calibrate one first")

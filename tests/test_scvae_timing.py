@@ -61,14 +61,14 @@ def test_a_spread_per_window_retimes_each_window_as_its_own_spread_would():
 
 
 def test_the_spread_widens_where_the_gate_falls_back():
-    """``sample_spread``: ``timing_spread`` where the gate keeps the network (weight 1), the fallback spread where
-    it falls back to Slerp (weight 0), linear between; off (0) or without a gate weight: ``timing_spread``."""
+    """``sample_timing_spread``: ``timing_spread`` where the gate keeps the network (weight 1), the fallback spread
+    where it falls back to Slerp (weight 0), linear between; off (0) or without a gate weight: ``timing_spread``."""
     import types
-    from inbetween_jax.models.scvae.bank import sample_spread
+    from inbetween_jax.models.scvae.bank import sample_timing_spread
     cfg = types.SimpleNamespace(timing_spread=0.25, timing_spread_fallback=0.45)
-    np.testing.assert_allclose(sample_spread(cfg, np.array([1.0, 0.0, 0.5, 1.3])), [0.25, 0.45, 0.35, 0.25])
-    assert sample_spread(cfg, 0.0) == pytest.approx(0.45) and sample_spread(cfg) == 0.25
-    assert sample_spread(types.SimpleNamespace(timing_spread=0.25, timing_spread_fallback=0.0), 0.0) == 0.25
+    np.testing.assert_allclose(sample_timing_spread(cfg, np.array([1.0, 0.0, 0.5, 1.3])), [0.25, 0.45, 0.35, 0.25])
+    assert sample_timing_spread(cfg, 0.0) == pytest.approx(0.45) and sample_timing_spread(cfg) == 0.25
+    assert sample_timing_spread(types.SimpleNamespace(timing_spread=0.25, timing_spread_fallback=0.0), 0.0) == 0.25
 
 
 def test_zero_spread_changes_nothing():
@@ -86,7 +86,7 @@ def test_shipped_samples_are_retimed_more_between_two_keyframes_than_inside_a_cl
     import dataclasses
     from inbetween_jax.data import load_motions
     from inbetween_jax.models.scvae import infer
-    from inbetween_jax.models.scvae.bank import sample_spread
+    from inbetween_jax.models.scvae.bank import sample_timing_spread
     from inbetween_jax.models.scvae.context import AFTER, BEFORE
     from inbetween_jax.shipped import shipped_run
     trained = infer.load(shipped_run("scvae"))
@@ -111,8 +111,8 @@ def test_shipped_samples_are_retimed_more_between_two_keyframes_than_inside_a_cl
     for sides in (False, True):
         on, plain = (infer.infill_between(t, m.skeleton, *keys(sides), n, S, 0, fa) for t in (trained, off))
         assert on["context"] == ("none" if not sides else "both sides")
-        # between two keyframes the spread widens as the gate falls back (bank.sample_spread); inside a clip fixed
-        spread = mc.timing_spread_in_clip if sides else sample_spread(mc, on["gate_weight"])
+        # between two keyframes the spread widens as the gate falls back (sample_timing_spread); in a clip fixed
+        spread = mc.timing_spread_in_clip if sides else sample_timing_spread(mc, on["gate_weight"])
         assert sides or mc.timing_spread <= spread <= mc.timing_spread_fallback
         np.testing.assert_allclose(on["r"][0], plain["r"][0], atol=1e-6)
         assert np.abs(on["q"][1:] - plain["q"][1:]).max() > 1e-3                     # samples 1-9 retimed

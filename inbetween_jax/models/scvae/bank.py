@@ -33,7 +33,7 @@ from inbetween_jax.models.scvae.timing import retimed
 
 __all__ = ["BANK_FILE", "SWITCHES", "MIRROR_TAG", "TransitionBank", "keyframe_space", "knn_transition",
            "knn_base_path", "pad_base_path", "blend", "sample_blend", "bank_sample_blend",
-           "sampled_mode", "sample_weight", "sample_spread", "bank_enabled", "bank_searched", "bank_needed",
+           "sampled_mode", "sample_weight", "sample_timing_spread", "bank_enabled", "bank_searched", "bank_needed",
            "check_mirror"]
 
 BANK_FILE = "bank.npz"
@@ -351,7 +351,7 @@ def bank_sample_blend(bank: TransitionBank, key_q, key_r, tgt_q, tgt_r, q, r, we
     """:func:`sample_blend` of samples q (S, B, L, J, 4), r (S, B, L, 3) of the in-betweens between keyframes
     ``key`` and ``tgt`` (key_q, tgt_q (B, J, 4); key_r, tgt_r (B, 3), the samples' space) with the bank's S - 1
     nearest transitions (:func:`knn_transition` with ``each``); then, with ``timing`` > 0 (a number or (B,), see
-    :func:`sample_spread`), each sample s >= 1 retimed (:func:`~.timing.retimed`; ``parts``: (J,) body part
+    :func:`sample_timing_spread`), each sample s >= 1 retimed (:func:`~.timing.retimed`; ``parts``: (J,) body part
     labels for part-wise timing, or None)."""
     each_q, each_r, _ = knn_transition(bank, key_q, key_r, tgt_q, tgt_r, q.shape[2], q.shape[0] - 1, each=True)
     q, r = sample_blend(q, r, each_q, each_r, weight)
@@ -390,7 +390,7 @@ def sample_weight(cfg, gate_weight=None):
     return float(w) if w.ndim == 0 else w[:, None, None]
 
 
-def sample_spread(cfg, gate_weight=None):
+def sample_timing_spread(cfg, gate_weight=None):
     """The sampled mode's timing spread between two keyframes alone: ``cfg.timing_spread``; with
     ``cfg.timing_spread_fallback`` > 0 and the gate's weight (a number or (B,) array), lerped from the fallback
     spread (weight 0: the fill is Slerp, whose timing the keyframes pin least) to ``timing_spread`` (weight 1: the

@@ -134,7 +134,8 @@ class ModelConfig:
                                      # (timing.retimed), warp amplitudes up to this (< 1); 0: off
     timing_parts: bool = False       # ... half of them with arms, legs and sides on their own clocks (timing.py)
     timing_spread_fallback: float = 0.0  # ... the two-keyframe spread where the gate falls back to Slerp (its weight
-                                     # 0), lerped toward timing_spread as the weight rises (bank.sample_spread); 0: off
+                                     # 0), lerped toward timing_spread as the weight rises
+                                     # (bank.sample_timing_spread); 0: off
     timing_spread_in_clip: float = 0.0  # ... the spread inside a clip (frames beside the keyframes known); 0: off
     ood_gate: bool = False         # inference: blend toward Slerp / lerp as the keyframes leave the training motion
     context_base: bool = False     # inference: frames beside the keyframes known -> onto the Hermite path (.context)

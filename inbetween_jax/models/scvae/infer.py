@@ -22,7 +22,7 @@ import numpy as np
 from inbetween_jax.models.scvae import model as M
 from inbetween_jax.models.scvae.bank import (BANK_FILE, TransitionBank, bank_enabled, bank_needed, bank_sample_blend,
                                              bank_searched, blend, knn_base_path, knn_transition, pad_base_path,
-                                             sample_spread, sample_weight, sampled_mode)
+                                             sample_timing_spread, sample_weight, sampled_mode)
 from inbetween_jax.models.scvae.context import context_kind, context_offsets, known_sides, neighbours, onto_context
 from inbetween_jax.models.scvae.features import keyframe_contacts, past_frame_inputs
 from inbetween_jax.models.scvae.losses import fk_positions
@@ -202,12 +202,12 @@ def bank_samples(bank: TransitionBank, cfg, windows, n_past: int, n_trans: int, 
     """The sampled mode (:func:`.bank.sample_blend`, ``cfg.bank_sample_weight``) on samples q (S, B, n_trans, J,
     4), r (S, B, n_trans, 3) of the transitions between frames ``n_past - 1`` and ``n_past + n_trans``: sample
     s >= 1 blended with the bank's s-th nearest transition (weight :func:`sample_weight`, ``gate_weight`` (B,)
-    the gate's per window), then retimed at ``spread`` (default :func:`.bank.sample_spread`, the two-keyframe one;
-    inside a clip ``cfg.timing_spread_in_clip``)."""
+    the gate's per window), then retimed at ``spread`` (default :func:`.bank.sample_timing_spread`, the two-keyframe
+    one; inside a clip ``cfg.timing_spread_in_clip``)."""
     k0, k1 = n_past - 1, n_past + n_trans
     return bank_sample_blend(bank, windows.local_quats[:, k0], windows.root_pos[:, k0], windows.local_quats[:, k1],
                              windows.root_pos[:, k1], q, r, sample_weight(cfg, gate_weight),
-                             sample_spread(cfg, gate_weight) if spread is None else spread,
+                             sample_timing_spread(cfg, gate_weight) if spread is None else spread,
                              body_parts(windows.skeleton) if cfg.timing_parts else None)
 
 
@@ -311,7 +311,8 @@ def infill_between(trained: Trained, skeleton, start: dict, end: dict, frames: i
         q[:, 1:-1], r[:, 1:-1] = mid_q[:, 0], mid_r[:, 0]
     timing = np.zeros((num_samples, len(PARTS)))
     if trained.bank is not None and sampled_mode(m, num_samples):   # sample s >= 1: the bank's s-th nearest
-        spread = sample_spread(m, _sample_gate(gated)) if ctx == "none" else m.timing_spread_in_clip   # sides pin it
+        spread = (sample_timing_spread(m, _sample_gate(gated)) if ctx == "none"
+                  else m.timing_spread_in_clip)                                # the sides pin the timing more
         mid_q, mid_r = bank_sample_blend(trained.bank, qs[None], roots[:1], qe[None], roots[1:], q[:, None, 1:-1],
                                          r[:, None, 1:-1], sample_weight(m, _sample_gate(gated)), spread,
                                          body_parts(skeleton) if m.timing_parts else None)

@@ -7,7 +7,7 @@ other; monotone for ``|a| < 1``; ``a > 0`` moves the motion earlier).  With ``ti
 its own amplitude: half the samples are retimed whole, the other half move the arms against the legs or one side
 against the other (:func:`part_amplitudes`).  Sample 0 is never changed, and neither are the keyframes.
 The spread may differ per keyframe pair: ``model.timing_spread_fallback`` widens it where the out-of-distribution
-gate falls back to Slerp (:func:`~.bank.sample_spread`).
+gate falls back to Slerp (:func:`~.bank.sample_timing_spread`).
 
 NumPy only; shapes: S samples, B keyframe pairs, L frames strictly between the keyframes, J joints.
 """
