@@ -85,6 +85,24 @@ def test_mirror_augmentation_in_batches():
     assert 0 < same.sum() < 16
 
 
+def test_tempo_copies_are_the_motions_played_faster():
+    """data.tempo=2,0.5: each fast copy is its motion at half the frames, frame k the original's frame 2k (the same
+    real motion twice as fast), each slow copy twice as long; the clip bank grows by the copies' clips; a speed
+    of 0 is one line."""
+    cfg = get_config("tiny")
+    plain = load_data(cfg, "embedded")
+    fast = load_data(apply_overrides(cfg, ["data.tempo=2,0.5"]), "embedded")
+    n = len(plain.motions)
+    assert len(fast.motions) == 3 * n and len(fast.bank.starts) > len(plain.bank.starts)
+    assert all(abs(c.num_frames - 2 * m.num_frames) <= 2 for m, c in zip(plain.motions, fast.motions[2 * n:]))
+    for m, c in zip(plain.motions, fast.motions[n:]):
+        assert abs(c.fps - m.fps) < 1e-3 and abs(c.num_frames - (m.num_frames + 1) // 2) <= 1
+        k = min(c.num_frames, (m.num_frames + 1) // 2)
+        np.testing.assert_allclose(c.global_positions()[:k], m.global_positions()[:2 * k:2], atol=1e-3)
+    with pytest.raises(ValueError, match="data.tempo"):
+        load_data(apply_overrides(cfg, ["data.tempo=0"]), "embedded")
+
+
 def test_improved_switches_in_training():
     """The improved switches on real clips: evaluation-matched gaps switch on at the curriculum's end, the
     untrained residual model's loss is its pre-fill's (``model.fill=hermite``: the limited Hermite fill), and

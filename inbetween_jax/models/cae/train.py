@@ -22,6 +22,7 @@ import numpy as np
 import optax
 
 from inbetween_jax.data import load_motions
+from inbetween_jax.data.resample import WORKING_FPS
 from inbetween_jax.models.cae import model
 from inbetween_jax.models.cae.features import (ClipBank, body_frame_features, build_clip_bank, mirror_clips,
                                                mirror_rows)
@@ -30,7 +31,7 @@ from inbetween_jax.models.cae.masks import curriculum_end_epoch, curriculum_mu, 
 from inbetween_jax.models.spec import Training
 from inbetween_jax.train.optim import make_optimizer
 
-__all__ = ["ClipData", "load_data", "steps_per_epoch", "epoch_mu", "epoch_matched", "make_training"]
+__all__ = ["ClipData", "load_data", "tempo_copies", "steps_per_epoch", "epoch_mu", "epoch_matched", "make_training"]
 
 
 @dataclasses.dataclass
@@ -56,6 +57,7 @@ def load_data(cfg, source: str, split: str = "train") -> ClipData:
     motions = load_motions(source, split)
     if cfg.data.max_motions > 0:
         motions = motions[:cfg.data.max_motions]
+    motions = motions + tempo_copies(source, split, cfg.data.tempo, len(motions))
     feats = [body_frame_features(m) for m in motions]
     length, note = cfg.data.clip_length, ""
     longest = max(f.features.shape[0] for f in feats)
@@ -63,6 +65,22 @@ def load_data(cfg, source: str, split: str = "train") -> ClipData:
         length = max(8, longest // 8 * 8)
         note = f"no training motion has {cfg.data.clip_length} frames; training on {length}-frame clips"
     return ClipData(build_clip_bank(feats, length, std_eps=cfg.data.std_eps), motions, split, note)
+
+
+def tempo_copies(source: str, split: str, tempo, count: int) -> list:
+    """For each speed ``s`` of ``tempo`` (``data.tempo``), the split's first ``count`` motions read at
+    ``WORKING_FPS / s`` and played at ``WORKING_FPS``: the same real motion ``s`` times faster.
+
+    Raises:
+        ValueError: a speed that is not positive (one line).
+    """
+    if any(not float(s) > 0 for s in tempo):
+        raise ValueError(f"data.tempo: speeds must be positive, got {list(tempo)}")
+    copies = []
+    for s in tempo:
+        for m in load_motions(source, split, fps=WORKING_FPS / float(s))[:count]:
+            copies.append(dataclasses.replace(m, frame_time=1.0 / WORKING_FPS))
+    return copies
 
 
 def steps_per_epoch(cfg, bank: ClipBank) -> int:
