@@ -87,11 +87,11 @@ def test_mirror_augmentation_in_batches():
 
 def test_tempo_copies_are_the_motions_played_faster():
     """data.tempo=2,0.5: each fast copy is its motion at half the frames, frame k the original's frame 2k (the same
-    real motion twice as fast), each slow copy twice as long; the clip bank grows by the copies' clips; a speed
-    of 0 is one line."""
+    real motion twice as fast), each slow copy twice as long; the clip bank grows by the copies' clips; run.json
+    names each file once; a speed of 0 is one line."""
     cfg = get_config("tiny")
-    plain = load_data(cfg, "embedded")
-    fast = load_data(apply_overrides(cfg, ["data.tempo=2,0.5"]), "embedded")
+    fast_cfg = apply_overrides(cfg, ["data.tempo=2,0.5"])
+    plain, fast = load_data(cfg, "embedded"), load_data(fast_cfg, "embedded")
     n = len(plain.motions)
     assert len(fast.motions) == 3 * n and len(fast.bank.starts) > len(plain.bank.starts)
     assert all(abs(c.num_frames - 2 * m.num_frames) <= 2 for m, c in zip(plain.motions, fast.motions[2 * n:]))
@@ -99,6 +99,7 @@ def test_tempo_copies_are_the_motions_played_faster():
         assert abs(c.fps - m.fps) < 1e-3 and abs(c.num_frames - (m.num_frames + 1) // 2) <= 1
         k = min(c.num_frames, (m.num_frames + 1) // 2)
         np.testing.assert_allclose(c.global_positions()[:k], m.global_positions()[:2 * k:2], atol=1e-3)
+    assert make_training(fast_cfg, fast).meta["data"]["files"] == make_training(cfg, plain).meta["data"]["files"]
     with pytest.raises(ValueError, match="data.tempo"):
         load_data(apply_overrides(cfg, ["data.tempo=0"]), "embedded")
 

@@ -156,7 +156,7 @@ def make_training(cfg, data: ClipData) -> Training:
     motions = data.motions
     meta = {"skeleton": motions[0].skeleton.to_dict(), "fps": float(motions[0].fps),
             "stats": {"mean": bank.normalizer.mean, "std": bank.normalizer.std},
-            "data": {"split": data.split, "files": [os.path.basename(m.source) for m in motions],
+            "data": {"split": data.split, "files": list(dict.fromkeys(os.path.basename(m.source) for m in motions)),
                      "frames": int(bank.frames.shape[0]), "clips": int(n), "clip_length": int(length)},
             "extra": {"num_joints": int(j), "clip_length": int(length), "steps_per_epoch": int(spe)}}
     describe = (f"{n} clips of {length} frames from {len(motions)} motions ({bank.frames.shape[0]} usable frames), "
