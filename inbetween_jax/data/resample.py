@@ -102,4 +102,16 @@ def resample_motion(motion, fps: float = WORKING_FPS):
     return dataclasses.replace(motion, local_quats=_sign_continuous(quats), local_pos=pos, frame_time=1.0 / fps)
 
 
-__all__ = ["WORKING_FPS", "FRAME_TOL", "nominal_fps", "resample_motion", "sample_times", "slerp"]
+__all__ = ["WORKING_FPS", "FRAME_TOL", "nominal_fps", "resample_motion", "sample_times", "slerp", "check_tempo"]
+
+
+def check_tempo(tempo) -> tuple:
+    """``data.tempo`` (the speeds of a model's tempo copies) as floats.
+
+    Raises:
+        ValueError: a speed that is not positive (one line).
+    """
+    speeds = tuple(float(s) for s in tempo)
+    if any(not s > 0 for s in speeds):
+        raise ValueError(f"data.tempo: speeds must be positive, got {list(tempo)}")
+    return speeds

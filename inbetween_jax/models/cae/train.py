@@ -22,7 +22,7 @@ import numpy as np
 import optax
 
 from inbetween_jax.data import load_motions
-from inbetween_jax.data.resample import WORKING_FPS
+from inbetween_jax.data.resample import WORKING_FPS, check_tempo
 from inbetween_jax.models.cae import model
 from inbetween_jax.models.cae.features import (ClipBank, body_frame_features, build_clip_bank, mirror_clips,
                                                mirror_rows)
@@ -74,11 +74,9 @@ def tempo_copies(source: str, split: str, tempo, count: int) -> list:
     Raises:
         ValueError: a speed that is not positive (one line).
     """
-    if any(not float(s) > 0 for s in tempo):
-        raise ValueError(f"data.tempo: speeds must be positive, got {list(tempo)}")
     copies = []
-    for s in tempo:
-        for m in load_motions(source, split, fps=WORKING_FPS / float(s))[:count]:
+    for s in check_tempo(tempo):
+        for m in load_motions(source, split, fps=WORKING_FPS / s)[:count]:
             copies.append(dataclasses.replace(m, frame_time=1.0 / WORKING_FPS))
     return copies
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from inbetween_jax.data import read_bvh
 from inbetween_jax.data.features import detect_unit_scale
-from inbetween_jax.data.resample import WORKING_FPS, resample_motion
+from inbetween_jax.data.resample import WORKING_FPS, check_tempo, resample_motion
 from inbetween_jax.data.skeleton import Skeleton
 from inbetween_jax.geometry.heading import yaw_matrix
 from inbetween_jax.models.interaction.features import (apply_space, facing_yaw, root_space,
@@ -292,8 +292,7 @@ def augmented_pairs(pairs: Sequence[PairedMotion], source: Optional[str], tempo=
     if tempo:
         if any(p.constructed or p.split is None for p in pairs):
             raise ValueError(f"{source}: data.tempo needs whole real takes (constructed or time-split pairs here)")
-        if any(not s > 0 for s in tempo):
-            raise ValueError(f"data.tempo: speeds must be positive, got {list(tempo)}")
+        check_tempo(tempo)
         from inbetween_jax.data.datasets import resolve_source
         folder, names, fps = resolve_source(source), {p.name for p in pairs}, pairs[0].fps
         for s in tempo:

@@ -78,11 +78,10 @@ def _with_tempo_copies(windows: MotionWindows, source: str, split: str, tempo) -
     """
     if not tempo:
         return windows
-    if any(not float(s) > 0 for s in tempo):
-        raise ValueError(f"data.tempo: speeds must be positive, got {list(tempo)}")
     from inbetween_jax.data import load_dataset
-    copies = [dataclasses.replace(load_dataset(source, split, window=windows.window, fps=windows.fps / float(s)),
-                                  fps=windows.fps) for s in tempo]
+    from inbetween_jax.data.resample import check_tempo
+    copies = [dataclasses.replace(load_dataset(source, split, window=windows.window, fps=windows.fps / s),
+                                  fps=windows.fps) for s in check_tempo(tempo)]
     return MotionWindows.concatenate([windows] + copies)
 
 
