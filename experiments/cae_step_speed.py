@@ -4,6 +4,7 @@
     python experiments/cae_step_speed.py grad        # the CAE loss gradient: each change on and off, one process
     python experiments/cae_step_speed.py flags [--rounds 3]   # train steps under each YNNPACK setting
     python experiments/cae_step_speed.py profile [MODEL]      # a train step's op time by XLA op kind (cae)
+    python experiments/cae_step_speed.py remat [MODEL] [--reps 15]   # model.remat policies, one process (scvae-cpu)
 
 ``layers`` times, per conv shape of the CAE (batch 16, 66 x 168 input), the weight gradient of XLA's own
 autodiff against the custom VJP the model used before (kh*kw shifted-slice matmuls).  ``grad`` times the
@@ -11,7 +12,8 @@ autodiff against the custom VJP the model used before (kh*kw shifted-slice matmu
 (before), XLA's gradient (1) and then the phase-split transposed conv (2, the model now).  ``flags`` runs one
 fresh process per model and ``--xla_cpu_experimental_ynn_fusion_type`` setting (XLA's default, ``individual_dot``,
 none), rounds in rotating order, and prints each median of 9 train steps (:mod:`inbetween_jax.xla_cpu`).
-Medians in ms; compare ratios within one run.
+``remat`` times the S-CVAE's or the interaction model's step under each ``model.remat`` policy in one process
+(:mod:`inbetween_jax.train.remat`; the CAE has no rollout).  Medians in ms; compare ratios within one run.
 """
 import argparse
 import os
@@ -110,10 +112,10 @@ def grad():
         print(f"| {name} | {times[name]:.1f} | {base / times[name]:.2f}x | {values[name]:.7f} |")
 
 
-def step_call(model: str):
+def step_call(model: str, overrides=()):
     """One train step of ``model`` as a callable (cae: ``improved``; interaction: ``improved`` with 3 members;
     scvae-cpu / scvae-paper: the speed section's S-CVAE step, batch 32, 50 frames) on one real batch; each call
-    advances the state and waits for the step."""
+    advances the state, waits for the step and returns its metrics.  ``overrides``: ``key=value`` config changes."""
     import jax
     from inbetween_jax.train.config import apply_overrides
     from inbetween_jax.train.loop import make_step_fn, strongly_typed
@@ -123,16 +125,16 @@ def step_call(model: str):
         from inbetween_jax.models.scvae.features import TrainData, compute_stats
         win = load_dataset(None, "benchmark")
         _, batch, step_fn, init, _ = scvae_step_setup(model.split("-")[1], TrainData.from_windows(win),
-                                                      compute_stats(win))
+                                                      compute_stats(win), overrides=overrides)
     else:
         if model == "interaction":
             from inbetween_jax.models.interaction import train as T
             from inbetween_jax.models.interaction.config import get_config
-            cfg = apply_overrides(get_config("improved"), ["model.members=3"])
+            cfg = apply_overrides(get_config("improved"), ["model.members=3", *overrides])
         else:
             from inbetween_jax.models.cae import train as T
             from inbetween_jax.models.cae.config import get_config
-            cfg = get_config("improved")
+            cfg = apply_overrides(get_config("improved"), list(overrides))
         tr = T.make_training(cfg, T.load_data(cfg, None, "train"))
         batch, init, step_fn = tr.batch_fn(tr.num_steps // 2, jax.random.key(2)), tr.init_fn, tr.step_fn
     batch = jax.tree.map(jax.numpy.asarray, batch)
@@ -142,7 +144,55 @@ def step_call(model: str):
     def one():
         state["s"], m = step(state["s"], batch, np.int32(0))
         return jax.block_until_ready(m)
+    one.hlo = lambda: step.lower(state["s"], batch, np.int32(0)).compile().as_text()     # the optimised program
     return one
+
+
+def entry_copies(hlo: str) -> tuple:
+    """(count, MB) of the ``copy`` instructions in the optimised program's entry computation (outside every loop
+    body: they run once per step)."""
+    import re
+    entry, n, size = False, 0, 0
+    for line in hlo.splitlines():
+        if line and not line.startswith(" ") and line.rstrip().endswith("{"):
+            entry = line.startswith("ENTRY")
+        m = re.search(r"= (\w+)\[([\d,]*)\]\S* copy\(", line) if entry else None
+        if m:
+            n += 1
+            size += int(np.prod([int(d) for d in m.group(2).split(",") if d])) * (1 if m.group(1) == "pred" else 4)
+    return n, size / 1e6
+
+
+def remat(model: str, reps: int):
+    """``model.remat`` A/B in one process: one step function per policy (:mod:`inbetween_jax.train.remat`), the
+    same first state and batch; the calls interleaved (order reversed every round), medians of wall and CPU
+    time (``time.process_time``: both threads' work, less moved by other jobs than the wall time), and the first
+    step's loss of each (the same maths: equal to float tolerance)."""
+    import jax
+    from inbetween_jax.train.remat import REMAT_POLICIES
+    policies = list(REMAT_POLICIES)
+    calls, loss = {}, {}
+    for p in policies:
+        calls[p] = step_call(model, [f"model.remat={p}"])
+        m = calls[p]()
+        loss[p] = float(jax.device_get(m.get("loss", m.get("g_loss", next(iter(m.values()))))))
+        calls[p]()
+    wall, cpu = {p: [] for p in policies}, {p: [] for p in policies}
+    for r in range(reps):
+        for p in policies if r % 2 == 0 else policies[::-1]:
+            t, c = time.perf_counter(), time.process_time()
+            calls[p]()
+            wall[p].append(1000 * (time.perf_counter() - t))
+            cpu[p].append(1000 * (time.process_time() - c))
+    w0, c0 = np.median(wall[""]), np.median(cpu[""])
+    print(f"| {model}, `model.remat` ({reps} calls each) | wall ms | x keep all | CPU ms | x keep all | first loss "
+          "| copies once per step |")
+    print("|---|---|---|---|---|---|---|")
+    for p in policies:
+        w, c = np.median(wall[p]), np.median(cpu[p])
+        n, mb = entry_copies(calls[p].hlo())
+        print(f"| `{p or '(empty): keep all'}` | {w:.1f} | {w / w0:.3f} | {c:.1f} | {c / c0:.3f} | {loss[p]:.7f} "
+              f"| {n}, {mb:.1f} MB |", flush=True)
 
 
 def step_ms(model: str) -> float:
@@ -189,12 +239,19 @@ def profile(model: str, calls: int = 5):
 
 if __name__ == "__main__":
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("what", choices=("layers", "grad", "flags", "step", "profile"))
+    p.add_argument("what", choices=("layers", "grad", "flags", "step", "profile", "remat"))
     p.add_argument("model", nargs="?", choices=MODELS)
     p.add_argument("--rounds", type=int, default=3)
+    p.add_argument("--reps", type=int, default=15, help="remat: timed calls per policy")
     a = p.parse_args()
     if a.what == "step":
         print(f"{step_ms(a.model):.3f}")
+    elif a.what == "remat":
+        from inbetween_jax import xla_cpu
+        xla_cpu.configure((a.model or "scvae-cpu").split("-")[0])
+        if (a.model or "scvae-cpu") == "cae":
+            p.error("remat: the CAE has no rollout; choose interaction, scvae-cpu or scvae-paper")
+        remat(a.model or "scvae-cpu", a.reps)
     elif a.what == "profile":
         from inbetween_jax import xla_cpu
         xla_cpu.configure((a.model or "cae").split("-")[0])          # as `inbetween` runs the model

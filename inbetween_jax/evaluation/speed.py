@@ -49,13 +49,15 @@ __all__ = ["run", "markdown", "scvae_rows", "scvae_step_setup", "cae_rows", "cae
            "TORCH_BACKENDS"]
 
 
-def scvae_step_setup(variant, data, stats, batch=32, n_trans=50):
+def scvae_step_setup(variant, data, stats, batch=32, n_trans=50, overrides=()):
     """The speed section's S-CVAE training step of one width: ``(cfg, numpy batch, step_fn, init_fn, length)`` on
-    ``batch`` real windows of ``data`` (drawn with seed 0) with ``n_trans``-frame transitions."""
+    ``batch`` real windows of ``data`` (drawn with seed 0) with ``n_trans``-frame transitions (``overrides``:
+    ``key=value`` strings applied to the preset, e.g. ``model.remat=``)."""
     from inbetween_jax.models.scvae import train as scvae_train
     from inbetween_jax.models.scvae.config import get_config
+    from inbetween_jax.train.config import apply_overrides
     length = n_trans + 1
-    cfg = get_config(variant)
+    cfg = apply_overrides(get_config(variant), list(overrides))
     cfg = dataclasses.replace(cfg, data=dataclasses.replace(cfg.data, trans_max=n_trans))
     rng = np.random.default_rng(0)
     idx = rng.integers(0, len(data), batch)

@@ -28,6 +28,7 @@ from inbetween_jax.geometry import dct, idct
 from inbetween_jax.models.interaction.features import apply_space, root_space, to_space
 from inbetween_jax.models.interaction.layers import (ConvGCN, Discriminator, FiLM, PeriodicAE, Refiner, film,
                                                      reparameterize)
+from inbetween_jax.train.remat import remat_step
 
 __all__ = ["GROUPS", "Generator", "pjd_channels", "graphdefs", "init_params", "cross_space", "cross_space_inverse",
            "extra_features", "tta_features", "lerp_to_keypose", "generator_step", "refine", "pae_encode",
@@ -292,7 +293,7 @@ def ar_predict(gen_params, batch, key, cfg, forward_axis, p_pred):
         nxt = jnp.where(use, out["pred"], g)
         return jnp.concatenate([win[:, :, l:], nxt], axis=2), out
 
-    _, outs = jax.lax.scan(step, x[:, :, :T], (gt, jax.random.split(key, P), jnp.arange(P, dtype=jnp.float32)))
+    _, outs = jax.lax.scan(remat_step(step, cfg.model.remat), x[:, :, :T], (gt, jax.random.split(key, P), jnp.arange(P, dtype=jnp.float32)))
     cat = lambda a: jnp.moveaxis(a, 0, 2).reshape((B, 2, P * l) + a.shape[4:])  # noqa: E731
     return cat(outs["pred"]), cat(outs["coarse"]), outs["mu"], outs["logvar"]
 

@@ -27,6 +27,7 @@ from inbetween_jax.models.interaction.losses import discriminator_objective, gen
 from inbetween_jax.models.interaction.model import init_params, tta_flagged
 from inbetween_jax.models.spec import Training
 from inbetween_jax.train.optim import make_optimizer
+from inbetween_jax.train.remat import check_remat
 
 __all__ = ["BATCH_KEYS", "load_data", "keyframe_index", "training_batch", "init_state", "make_training"]
 
@@ -114,6 +115,7 @@ def make_training(cfg, data: PairSet) -> Training:
     """The pure ``init_fn`` / ``step_fn`` / ``batch_fn`` and the run metadata for ``data`` (:func:`load_data`)."""
     tx = make_optimizer(cfg.train)
     d, m = cfg.data, cfg.model
+    check_remat(m.remat)
     T, N = d.n_input, d.ar_steps * d.n_pred
     if d.tta_guess > 0 and not m.tta:
         raise ValueError("data.tta_guess needs model.tta (the guess is told through the time-to-arrival input)")

@@ -77,7 +77,9 @@ for free; ``loss.prior_path`` also trains the fill from the prior's mean.  ``mod
 ``model.motion_spread`` shape the draws at inference (docs/results/scvae.md, "Samples that differ").
 
 ``model.deferred_wgrad`` is a speed switch only (the largest weight gradients as one matmul after the scan, see
-:mod:`inbetween_jax.models.scvae.deferred_grads`); it does not change the losses.
+:mod:`inbetween_jax.models.scvae.deferred_grads`); it does not change the losses.  So is ``model.remat`` (on in
+every preset, ``dots``): the rollout's backward pass keeps only the matmul outputs of each step and recomputes
+the rest (:mod:`inbetween_jax.train.remat`); ``model.remat=`` keeps everything, as before 2026-12-07.
 """
 from __future__ import annotations
 
@@ -117,6 +119,7 @@ class ModelConfig:
     stitch_loss: bool = True       # False: "w/o SL"
     # speed only (same losses): the largest weight gradients as one matmul after the scan
     deferred_wgrad: bool = True
+    remat: str = "dots"            # speed only (same losses): what the rollout's backward pass keeps (train/remat.py)
     # beyond the paper (the ``improved`` preset; all off = the paper's model)
     residual: bool = False         # decoder predicts offsets from the Slerp / lerp path (zero-initialised head)
     decoder_target: bool = False   # the decoder also sees the offset-to-target embedding (with tta added)

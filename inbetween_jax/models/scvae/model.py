@@ -25,6 +25,7 @@ from inbetween_jax.models.scvae import motion_latent as ML
 from inbetween_jax.models.scvae.base_path import base_path, interpolation_path  # noqa: F401 (re-exported)
 from inbetween_jax.models.scvae.features import (PHASE_DIM, dims, offset_features, reverse_time,
                                                  state_features)
+from inbetween_jax.train.remat import remat_step
 
 
 def init_phase_net(f: nn.ParamFactory, d_in: int, hidden: int) -> list:
@@ -272,7 +273,7 @@ def rollout(params: dict, cfg, stats: dict, start: dict, target: dict, length, k
         return ((cf, nxt_f), (cb, cur_b)), (out, {k: v for k, v in rec.items() if v})
 
     init = ((carry_f, s0), (carry_b, reverse_time(t0)))
-    _, (ys, recs) = jax.lax.scan(body, init, (jnp.arange(steps), keys, taps))
+    _, (ys, recs) = jax.lax.scan(remat_step(body, cfg.remat), init, (jnp.arange(steps), keys, taps))
     ys = jax.tree.map(lambda x: jnp.swapaxes(x, 0, 1), ys)  # (B, S, ...)
     m = jnp.arange(steps)
     res = dict(ys, h=h, k=k, **{f"rec_{g}": r for g, r in recs.items()})

@@ -29,6 +29,7 @@ from inbetween_jax.models.scvae.deferred_grads import add_deferred_weight_grads,
 from inbetween_jax.models.scvae.features import TrainData, compute_stats, dims
 from inbetween_jax.models.spec import Training
 from inbetween_jax.train.optim import make_optimizer
+from inbetween_jax.train.remat import check_remat
 
 __all__ = ["load_data", "make_training", "make_init_fn", "make_train_step", "batch_fn_factory", "make_batch",
            "group_weights", "split_batch", "generator_loss", "transition_length", "scan_length"]
@@ -277,6 +278,7 @@ def generator_loss(params, disc, cfg, stats, batch, key, parents, max_length, ta
 def make_train_step(cfg, parents: tuple, max_length: int | None = None):
     """Pure ``(state, batch, key) -> (state, metrics)``; the rollout length comes from the batch's shape
     (``max_length`` is accepted for callers that pass it and is not used)."""
+    check_remat(cfg.model.remat)
     opt = make_optimizer(cfg.train)
 
     def train_step(state, batch, key):
