@@ -17,9 +17,7 @@ import time
 from inbetween_jax import shipped
 from inbetween_jax.evaluation import markdown_table
 from inbetween_jax.models.scvae.samples import COLUMNS, RATIO_COLUMNS, validation_rows
-from inbetween_jax.train.config import apply_overrides
-from inbetween_jax.models.scvae.config import get_config
-from inbetween_jax.train.run import _added_keys, load_run
+from inbetween_jax.train.run import load_run
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 p.add_argument("run_dirs", nargs="+")
@@ -32,9 +30,8 @@ a = p.parse_args()
 package = os.path.realpath(os.path.join(os.path.dirname(shipped.__file__), "assets"))
 for run_dir in a.run_dirs:
     t0 = time.time()
-    run = load_run(run_dir)
-    full = _added_keys(run.config, dataclasses.asdict(get_config(run.preset)))     # switches newer than the run
-    run = dataclasses.replace(run, config=apply_overrides(full, a.set))
+    run = load_run(run_dir)      # switches newer than the run take their defaults; --set checked, one-line errors
+    run = dataclasses.replace(run, config=shipped.config_with_overrides(run.model, run.config, a.set))
     rows = validation_rows(run, a.source, num_samples=a.samples, split=a.split)
     cols = COLUMNS + RATIO_COLUMNS
     where = a.split or "validation subjects"
