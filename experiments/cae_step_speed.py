@@ -175,7 +175,7 @@ def remat(model: str, reps: int):
     for p in policies:
         calls[p] = step_call(model, [f"model.remat={p}"])
         m = calls[p]()
-        loss[p] = float(jax.device_get(m.get("loss", m.get("g_loss", next(iter(m.values()))))))
+        loss[p] = float(jax.device_get(m["loss"]))
         calls[p]()
     wall, cpu = {p: [] for p in policies}, {p: [] for p in policies}
     for r in range(reps):
@@ -247,11 +247,12 @@ if __name__ == "__main__":
     if a.what == "step":
         print(f"{step_ms(a.model):.3f}")
     elif a.what == "remat":
-        from inbetween_jax import xla_cpu
-        xla_cpu.configure((a.model or "scvae-cpu").split("-")[0])
-        if (a.model or "scvae-cpu") == "cae":
+        model = a.model or "scvae-cpu"
+        if model == "cae":
             p.error("remat: the CAE has no rollout; choose interaction, scvae-cpu or scvae-paper")
-        remat(a.model or "scvae-cpu", a.reps)
+        from inbetween_jax import xla_cpu
+        xla_cpu.configure(model.split("-")[0])
+        remat(model, a.reps)
     elif a.what == "profile":
         from inbetween_jax import xla_cpu
         xla_cpu.configure((a.model or "cae").split("-")[0])          # as `inbetween` runs the model

@@ -4,8 +4,8 @@ A ``lax.scan`` differentiated by JAX stacks every intermediate of every step tha
 (steps, B, ...) buffer each (activations, the masks of each non-linearity, ...). XLA:CPU zero-fills each of those
 buffers on every call by copying one shared zero buffer. In the S-CVAE's step at ``cpu`` widths these copies
 write about 88 MB per step, and with the broadcasts they come from they took a third of the traced op time
-(docs/results/speed.md, "Rematerialised rollouts").  ``jax.checkpoint`` on the step function with a policy keeps
-fewer of them and recomputes the rest in the backward pass:
+(docs/results/speed.md, "2026-12-07: rematerialised rollouts").  ``jax.checkpoint`` on the step function with a
+policy keeps fewer of them and recomputes the rest in the backward pass:
 
     ""         keep every intermediate (JAX's default)
     "dots"     keep the matmul outputs, recompute the element-wise ops after them (``dots_saveable``)

@@ -293,7 +293,8 @@ def ar_predict(gen_params, batch, key, cfg, forward_axis, p_pred):
         nxt = jnp.where(use, out["pred"], g)
         return jnp.concatenate([win[:, :, l:], nxt], axis=2), out
 
-    _, outs = jax.lax.scan(remat_step(step, cfg.model.remat), x[:, :, :T], (gt, jax.random.split(key, P), jnp.arange(P, dtype=jnp.float32)))
+    xs = (gt, jax.random.split(key, P), jnp.arange(P, dtype=jnp.float32))
+    _, outs = jax.lax.scan(remat_step(step, cfg.model.remat), x[:, :, :T], xs)
     cat = lambda a: jnp.moveaxis(a, 0, 2).reshape((B, 2, P * l) + a.shape[4:])  # noqa: E731
     return cat(outs["pred"]), cat(outs["coarse"]), outs["mu"], outs["logvar"]
 
