@@ -18,7 +18,7 @@ letting gaps of at least ``--min-frames`` frames take the larger of the two gate
 
 RUN_DIR (default ``runs/scvae_wo_activities``, trained on ``train.split=fit-activities``) must hold its
 calibration (``inbetween calibrate-gate``); its validation gaps' ratios come from there.  The ``--split`` gaps
-(activities the run never saw; '' for none) are filled here.  About 6 min for the default run, 3 for the shipped
+(activities the run never saw; '' for none) are filled here.  About 4 min for the default run, 1.5 for the shipped
 weights.  Prints mean / p90 / max of each gap's error over the Hermite path and each activity group's mean.
 """
 import argparse
