@@ -32,7 +32,7 @@ import numpy as np
 from inbetween_jax.data import load_motions
 from inbetween_jax.data.activities import activity_group
 from inbetween_jax.data.datasets import val_split_of
-from inbetween_jax.geometry import forward_kinematics
+from inbetween_jax.geometry import forward_kinematics, local_positions
 from inbetween_jax.models.interaction.gate import departure_weight, fit_base_error
 from inbetween_jax.models.ood import Gate, gated_ratio
 from inbetween_jax.models.ood_runs import CALIBRATION_FILE
@@ -46,9 +46,8 @@ CAPS = (None, 1.0, 0.7, 0.5, 0.3)                  # departure caps; None: the l
 
 
 def _fk(m, q, r):
-    lp = np.broadcast_to(m.local_pos[0], r.shape[:-1] + m.local_pos[0].shape).copy()
-    lp[..., 0, :] = r
-    return forward_kinematics(q, lp, m.skeleton.parents)[1]
+    """World joint positions of rotations q (..., J, 4) and roots r (..., 3) on motion m's skeleton."""
+    return forward_kinematics(q, local_positions(r, m.local_pos[0]), m.skeleton.parents)[1]
 
 
 def gap_features(trained, motions, fa, departure=True, lengths=(10, 30, 50), stride=45, first=3) -> dict:
@@ -61,7 +60,7 @@ def gap_features(trained, motions, fa, departure=True, lengths=(10, 30, 50), str
           for w in ((0.0, 1.0) if departure else (0.0,))}
     out = {}
     for m in motions:
-        gp, p = _fk(m, m.local_quats, m.root_pos), m.root_pos[:, [0, 2]]
+        gp, p = m.global_positions(), m.root_pos[:, [0, 2]]
         for n in lengths:
             for k0 in range(max(first, 2), m.num_frames - n - 3, stride):
                 k1 = k0 + n + 1
@@ -69,8 +68,10 @@ def gap_features(trained, motions, fa, departure=True, lengths=(10, 30, 50), str
                 e = {"q": m.local_quats[k1], "r": m.root_pos[k1], "c": np.zeros(4)}
                 for d, ks, (a, b) in ((s, BEFORE, (k0 - 1, k0 - 2)), (e, AFTER, (k1 + 1, k1 + 2))):
                     d.update(zip(ks, (m.local_quats[a], m.root_pos[a], m.local_quats[b], m.root_pos[b])))
-                fill = {w: _fk(m, *(x[0, 1:-1] for x in (o["q"], o["r"])))
-                        for w, t in at.items() for o in [infer.infill_between(t, m.skeleton, s, e, n, 1, 0, fa)]}
+                fill = {}                        # joint positions of the fill at each learned-fill weight
+                for w, t in at.items():
+                    o = infer.infill_between(t, m.skeleton, s, e, n, 1, 0, fa)
+                    fill[w] = _fk(m, o["q"][0, 1:-1], o["r"][0, 1:-1])
                 dv, v0, v1 = (p[k1] - p[k0]) / (n + 1), (p[k0] - p[k0 - 2]) / 2, (p[k1 + 2] - p[k1]) / 2
                 norm = np.linalg.norm
                 body = gp[[k0, k1]] - gp[[k0, k1], :1]
