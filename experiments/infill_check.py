@@ -25,11 +25,10 @@ from inbetween_jax.data.activities import activity_group
 from inbetween_jax.data.datasets import GENERIC_CONTACT_VELFACTOR
 from inbetween_jax.data.retarget import prepare
 from inbetween_jax.evaluation.worst_case import summarise
-from inbetween_jax.geometry import forward_kinematics
 from inbetween_jax.metrics.steps import lift_offs
 from inbetween_jax.models.cae.infer import load as load_cae, process_motion
 from inbetween_jax.models.scvae import infer as scvae
-from inbetween_jax.models.scvae.context import AFTER, BEFORE
+from inbetween_jax.models.scvae.context import clip_keyframes
 from inbetween_jax.models.scvae.features import keyframe_contacts
 from inbetween_jax.models.scvae.gate import slerp_base
 from inbetween_jax.shipped import shipped_run
@@ -50,30 +49,24 @@ sm, cm = scvae.load(srun), load_cae(crun)
 sm = dataclasses.replace(sm, cfg=apply_overrides(sm.cfg, a.scvae_set))
 fa = tuple(sm.extra.get("forward_axis") or sm.skeleton.forward_axis())
 vf = sm.extra.get("contact_velfactor", GENERIC_CONTACT_VELFACTOR)        # the keyframes' foot contacts, as infill
-fk = lambda m, q, r: forward_kinematics(q, np.concatenate([r[..., None, :], np.broadcast_to(  # noqa: E731
-    m.local_pos[0, 1:], r.shape[:-1] + m.local_pos[0, 1:].shape)], -2), m.skeleton.parents)[1]
 res = {"scvae": [], "cae": []}
 for path in a.files:
     raw = read_bvh(path)
     raw = raw if a.scale == 1.0 else raw.scaled(a.scale)
     m = prepare(raw, path, sm.skeleton, srun.fps).motion
-    gp = fk(m, m.local_quats, m.root_pos)
+    gp = m.positions_of(m.local_quats, m.root_pos)
     group = activity_group(path)
     for n in [int(x) for x in a.scvae_frames.split(",")]:
         for k0 in range(3, m.num_frames - n - 2, a.stride):   # frames 0-1: often capture start-up
             k1 = k0 + n + 1
-            s = {"q": m.local_quats[k0], "r": m.root_pos[k0], "c": keyframe_contacts(m, k0, vf, "start")}
-            e = {"q": m.local_quats[k1], "r": m.root_pos[k1], "c": keyframe_contacts(m, k1, vf, "end")}
-            for d, ks, fr in ((s, BEFORE, (k0 - 1, k0 - 2)), (e, AFTER, (k1 + 1, k1 + 2))):
-                if 0 <= min(fr) and max(fr) < m.num_frames:     # the frames beside the keyframes, as infill passes them
-                    d.update(zip(ks, (m.local_quats[fr[0]], m.root_pos[fr[0]], m.local_quats[fr[1]],
-                                      m.root_pos[fr[1]])))
+            contacts = keyframe_contacts(m, k0, vf, "start"), keyframe_contacts(m, k1, vf, "end")
+            s, e = clip_keyframes(m, k0, k1, contacts)
             out = scvae.infill_between(sm, m.skeleton, s, e, n, a.samples, 0, fa)
             bq, br = slerp_base(m.local_quats[k0][None], m.root_pos[k0][None], m.local_quats[k1][None],
                                 m.root_pos[k1][None], n)
-            pos = fk(m, out["q"][:, 1:-1], out["r"][:, 1:-1])                           # (S, n, J, 3)
+            pos = m.positions_of(out["q"][:, 1:-1], out["r"][:, 1:-1])                           # (S, n, J, 3)
             each = np.linalg.norm(pos - gp[k0 + 1:k1], axis=-1).mean((1, 2))
-            base = np.linalg.norm(fk(m, bq[0], br[0]) - gp[k0 + 1:k1], axis=-1).mean()
+            base = np.linalg.norm(m.positions_of(bq[0], br[0]) - gp[k0 + 1:k1], axis=-1).mean()
             i, j = np.triu_indices(len(pos), 1)
             apart = np.linalg.norm(pos[i] - pos[j], axis=-1).mean() if len(i) else 0.0
             res["scvae"].append((group, n, each.mean() / base, [each.min() / base, apart / base]))

@@ -38,9 +38,9 @@ from inbetween_jax.data.datasets import split_files
 from inbetween_jax.data.files import embedded_files
 from inbetween_jax.data.sources import cmu_train_plan, read_cmu_train, val_files
 from inbetween_jax.evaluation.worst_case import summarise
-from inbetween_jax.geometry import forward_kinematics, quat_mul
+from inbetween_jax.geometry import quat_mul
 from inbetween_jax.models.scvae import infer as scvae
-from inbetween_jax.models.scvae.context import AFTER, BEFORE, context_offsets, neighbours
+from inbetween_jax.models.scvae.context import clip_keyframes, context_offsets, known_sides, neighbours
 from inbetween_jax.models.scvae.gate import slerp_base
 from inbetween_jax.shipped import shipped_run
 from inbetween_jax.train.config import apply_overrides
@@ -89,33 +89,21 @@ files = (val_files(cmu_train_plan()[0], by="subject") if a.split == "val-subject
 motions = read_cmu_train(files, a.split, run.fps)[0]
 
 
-def fk(m, q, r):
-    lp = np.concatenate([r[..., None, :], np.broadcast_to(m.local_pos[0, 1:], r.shape[:-1] + m.local_pos[0, 1:].shape)],
-                        -2)
-    return forward_kinematics(q, lp, m.skeleton.parents)[1]
-
-
 rows = []           # (group, n, {candidate: ratio to Slerp})
 for path, m in zip(files, motions):
-    gp = fk(m, m.local_quats, m.root_pos)
+    gp = m.positions_of(m.local_quats, m.root_pos)
     group = activity_group(path)
     for n in [int(x) for x in a.frames.split(",")]:
         for k0 in range(a.first, m.num_frames - n - 2, a.stride):
             k1 = k0 + n + 1
-            err = lambda q, r: np.linalg.norm(fk(m, q, r) - gp[k0 + 1:k1], axis=-1).mean()  # noqa: E731
-            s = {"q": m.local_quats[k0], "r": m.root_pos[k0], "c": np.zeros(4)}
-            e = {"q": m.local_quats[k1], "r": m.root_pos[k1], "c": np.zeros(4)}
-            for d, ks, frames in ((s, BEFORE, (k0 - 1, k0 - 2)), (e, AFTER, (k1 + 1, k1 + 2))):
-                if 0 <= min(frames) and max(frames) < m.num_frames:      # as inbetween infill passes them
-                    d.update(zip(ks, (m.local_quats[frames[0]], m.root_pos[frames[0]], m.local_quats[frames[1]],
-                                      m.root_pos[frames[1]])))
+            err = lambda q, r: np.linalg.norm(m.positions_of(q, r) - gp[k0 + 1:k1], axis=-1).mean()  # noqa: E731
+            s, e = clip_keyframes(m, k0, k1)                 # as inbetween infill passes them
             keys = [x[k][None] for x, k in ((m.local_quats, k0), (m.root_pos, k0), (m.local_quats, k1),
                                             (m.root_pos, k1))]
             sq, sr = slerp_base(*keys, n)
             res = {}
             for d in dampings:
-                side = lambda d, ks: tuple(d[k][None] for k in ks) if all(k in d for k in ks) else None  # noqa
-                nb = neighbours(trained.cfg.model, m.skeleton, *keys, side(s, BEFORE), side(e, AFTER))
+                nb = neighbours(trained.cfg.model, m.skeleton, *keys, *known_sides(s, e))
                 dq, dr = context_offsets(*keys, n, d, *nb)
                 res[f"hermite d{d:g}"] = err(quat_mul(sq[0], dq[0]), sr[0] + dr[0])
             for name, t in variants.items():
@@ -123,7 +111,7 @@ for path, m in zip(files, motions):
                 each = [err(q, r) for q, r in zip(out["q"][:, 1:-1], out["r"][:, 1:-1])]
                 res[name] = np.mean(each)
                 if num_samples > 1:
-                    pos = fk(m, out["q"][:, 1:-1], out["r"][:, 1:-1])
+                    pos = m.positions_of(out["q"][:, 1:-1], out["r"][:, 1:-1])
                     i, j = np.triu_indices(num_samples, 1)
                     res.update({f"{name} sample 0": each[0], f"{name} best": min(each),
                                 f"{name} apart": np.linalg.norm(pos[i] - pos[j], axis=-1).mean()})

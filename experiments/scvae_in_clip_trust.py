@@ -32,22 +32,16 @@ import numpy as np
 from inbetween_jax.data import load_motions
 from inbetween_jax.data.activities import activity_group
 from inbetween_jax.data.datasets import val_split_of
-from inbetween_jax.geometry import forward_kinematics, local_positions
 from inbetween_jax.models.interaction.gate import departure_weight, fit_base_error
 from inbetween_jax.models.ood import Gate, gated_ratio
 from inbetween_jax.models.ood_runs import CALIBRATION_FILE
 from inbetween_jax.models.scvae import infer
 from inbetween_jax.models.scvae.calibrate import _Zero, in_clip_records
-from inbetween_jax.models.scvae.context import AFTER, BEFORE
+from inbetween_jax.models.scvae.context import clip_keyframes
 from inbetween_jax.train.run import load_run
 
 TAUS = (0.0, 0.05, 0.1, 0.15, 0.2, 0.3, 1.01)      # steadiness thresholds; 0: the shipped gate, 1.01: every gap
 CAPS = (None, 1.0, 0.7, 0.5, 0.3)                  # departure caps; None: the looser gate uncapped
-
-
-def _fk(m, q, r):
-    """World joint positions of rotations q (..., J, 4) and roots r (..., 3) on motion m's skeleton."""
-    return forward_kinematics(q, local_positions(r, m.local_pos[0]), m.skeleton.parents)[1]
 
 
 def gap_features(trained, motions, fa, departure=True, lengths=(10, 30, 50), stride=45, first=3) -> dict:
@@ -64,14 +58,11 @@ def gap_features(trained, motions, fa, departure=True, lengths=(10, 30, 50), str
         for n in lengths:
             for k0 in range(max(first, 2), m.num_frames - n - 3, stride):
                 k1 = k0 + n + 1
-                s = {"q": m.local_quats[k0], "r": m.root_pos[k0], "c": np.zeros(4)}
-                e = {"q": m.local_quats[k1], "r": m.root_pos[k1], "c": np.zeros(4)}
-                for d, ks, (a, b) in ((s, BEFORE, (k0 - 1, k0 - 2)), (e, AFTER, (k1 + 1, k1 + 2))):
-                    d.update(zip(ks, (m.local_quats[a], m.root_pos[a], m.local_quats[b], m.root_pos[b])))
+                s, e = clip_keyframes(m, k0, k1)
                 fill = {}                        # joint positions of the fill at each learned-fill weight
                 for w, t in at.items():
                     o = infer.infill_between(t, m.skeleton, s, e, n, 1, 0, fa)
-                    fill[w] = _fk(m, o["q"][0, 1:-1], o["r"][0, 1:-1])
+                    fill[w] = m.positions_of(o["q"][0, 1:-1], o["r"][0, 1:-1])
                 dv, v0, v1 = (p[k1] - p[k0]) / (n + 1), (p[k0] - p[k0 - 2]) / 2, (p[k1 + 2] - p[k1]) / 2
                 norm = np.linalg.norm
                 body = gp[[k0, k1]] - gp[[k0, k1], :1]

@@ -151,6 +151,29 @@ def test_a_side_needs_two_frames_and_the_bench_windows_give_them():
     assert context_kind({"qp": 0, "rp": 0, "qp2": 0, "rp2": 0}, {"qn": 0, "rn": 0}) == "before the start"
 
 
+def test_clip_keyframes_pass_the_sides_a_motion_holds_and_positions_of_is_its_forward_kinematics():
+    """:func:`clip_keyframes` on a real CMU file: both sides inside the clip, none at its first frames or past
+    its last, the keyframes' own frames and the given contacts; ``Motion.positions_of`` on the motion's own
+    rotations is its per-frame forward kinematics (``global_positions``)."""
+    from inbetween_jax.data import read_bvh
+    from inbetween_jax.models.scvae.context import AFTER, BEFORE, clip_keyframes, context_kind
+    m = read_bvh(os.path.join(ASSETS, "02_01.bvh"), 0, 60)
+    s, e = clip_keyframes(m, 5, 26)
+    assert context_kind(s, e) == "both sides"
+    for got, want in ((s["q"], m.local_quats[5]), (s["qp2"], m.local_quats[3]), (e["r"], m.root_pos[26]),
+                      (e["rn"], m.root_pos[27]), (e["qn2"], m.local_quats[28])):
+        np.testing.assert_array_equal(got, want)
+    assert np.all(s["c"] == 0) and np.all(e["c"] == 0)
+    assert context_kind(*clip_keyframes(m, 1, 20)) == "after the end"
+    assert context_kind(*clip_keyframes(m, 30, 58)) == "before the start"
+    c0, c1 = np.array([1.0, 0, 0, 1]), np.array([0, 1.0, 1, 0])
+    s, e = clip_keyframes(m, 0, 59, (c0, c1))
+    assert not any(k in s for k in BEFORE) and not any(k in e for k in AFTER)
+    assert s["c"] is c0 and e["c"] is c1
+    np.testing.assert_allclose(m.positions_of(m.local_quats, m.root_pos), m.global_positions(), atol=1e-9)
+    np.testing.assert_allclose(m.positions_of(m.local_quats[7], m.root_pos[7]), m.global_positions()[7], atol=1e-9)
+
+
 def test_a_model_whose_base_continues_the_start_gets_the_end_side_only():
     """``model.base_velocity`` (``improved-velocity``): the network's own base already continues the frame before
     the start keyframe, so the fill inside a clip adds only the end side's motion (not the start's twice)."""

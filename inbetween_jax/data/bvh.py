@@ -56,6 +56,14 @@ class Motion:
         return forward_kinematics(np.asarray(self.local_quats, np.float64), np.asarray(self.local_pos, np.float64),
                                   self.skeleton.parents)[1]
 
+    def positions_of(self, local_quats, root_pos) -> np.ndarray:
+        """(..., J, 3) world joint positions of other rotations ``local_quats`` (..., J, 4) and root positions
+        ``root_pos`` (..., 3) on this motion's skeleton and bone offsets (a fill of some of its frames, say)."""
+        from inbetween_jax.geometry.kinematics import forward_kinematics, local_positions
+        return forward_kinematics(np.asarray(local_quats, np.float64),
+                                  local_positions(np.asarray(root_pos, np.float64), self.local_pos[0]),
+                                  self.skeleton.parents)[1]
+
     def slice(self, start: int, stop: int, step: int = 1) -> "Motion":
         return dataclasses.replace(self, local_quats=self.local_quats[start:stop:step],
                                    local_pos=self.local_pos[start:stop:step],

@@ -90,46 +90,36 @@ def in_clip_records(trained, motions, forward_axis, lengths=(10, 30, 50), stride
     and ``base_x_slerp`` (the path's error over Slerp's)."""
     import dataclasses
     import os
-    from inbetween_jax.geometry import forward_kinematics
     from inbetween_jax.models.ood import BLEND_WEIGHTS, Gate, TravelScore
     from inbetween_jax.models.scvae import infer
-    from inbetween_jax.models.scvae.context import AFTER, BEFORE
+    from inbetween_jax.models.scvae.context import clip_keyframes
     from inbetween_jax.models.scvae.gate import keyframe_context, slerp_base
     cfg = trained.cfg
     cfg = dataclasses.replace(cfg, model=dataclasses.replace(cfg.model, context_base=True, ood_gate=True,
                                                              context_gate=False))
     scorer = scorer or TravelScore(trained.skeleton.num_joints)
     at = {w: dataclasses.replace(trained, cfg=cfg, gate=(_Zero(), Gate(w - 1.0, w))) for w in BLEND_WEIGHTS}
-
-    def fk(m, q, r):
-        lp = np.broadcast_to(m.local_pos[0], r.shape[:-1] + m.local_pos[0].shape).copy()
-        lp[..., 0, :] = r
-        return forward_kinematics(q, lp, m.skeleton.parents)[1]
-
     records = []
     for m in motions:
-        gp = fk(m, m.local_quats, m.root_pos)
+        gp = m.global_positions()
         for n in lengths:
             for k0 in range(first, m.num_frames - n - 2, stride):
                 k1 = k0 + n + 1
-                s = {"q": m.local_quats[k0], "r": m.root_pos[k0], "c": np.zeros(4)}
-                e = {"q": m.local_quats[k1], "r": m.root_pos[k1], "c": np.zeros(4)}
-                for d, ks, fr in ((s, BEFORE, (k0 - 1, k0 - 2)), (e, AFTER, (k1 + 1, k1 + 2))):
-                    if 0 <= min(fr) and max(fr) < m.num_frames:
-                        d.update(zip(ks, (m.local_quats[fr[0]], m.root_pos[fr[0]], m.local_quats[fr[1]],
-                                          m.root_pos[fr[1]])))
+                s, e = clip_keyframes(m, k0, k1)
+                def err_of(q, r):                # mean joint error of a fill (n, J, 4), (n, 3) of the gap
+                    return float(np.linalg.norm(m.positions_of(q, r) - gp[k0 + 1:k1], axis=-1).mean())
                 err = {}
                 for w, t in at.items():
                     out = infer.infill_between(t, m.skeleton, s, e, n, 1, 0, forward_axis)
-                    err[w] = float(np.linalg.norm(fk(m, out["q"][0, 1:-1], out["r"][0, 1:-1]) - gp[k0 + 1:k1],
-                                                  axis=-1).mean())
+                    err[w] = err_of(out["q"][0, 1:-1], out["r"][0, 1:-1])
                 keys = [x[k][None] for x, k in ((m.local_quats, k0), (m.root_pos, k0), (m.local_quats, k1),
                                                 (m.root_pos, k1))]
                 sq, sr = slerp_base(*keys, n)
-                slerp = float(np.linalg.norm(fk(m, sq[0], sr[0]) - gp[k0 + 1:k1], axis=-1).mean())
+                slerp = err_of(sq[0], sr[0])
                 ctx = keyframe_context(*keys, n, m.skeleton, forward_axis)
                 base = max(err[0.0], 1e-9)
-                records.append({"name": f"{os.path.basename(str(m.source))}:{k0}", "frames": n, "score": float(scorer.score(ctx)[0]),
+                records.append({"name": f"{os.path.basename(str(m.source))}:{k0}", "frames": n,
+                                "score": float(scorer.score(ctx)[0]),
                                 **({"knn_score": float(knn.score(ctx)[0])} if knn is not None else {}),
                                 "ratios_at": [err[w] / base for w in BLEND_WEIGHTS],
                                 "base_x_slerp": base / max(slerp, 1e-9)})

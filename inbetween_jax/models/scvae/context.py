@@ -20,7 +20,7 @@ from inbetween_jax.baselines.velocity_interpolation import velocity_offsets
 from inbetween_jax.geometry import quat_align, quat_conj, quat_mul, quat_normalize
 
 __all__ = ["context_offsets", "limit_neighbour", "neighbours", "known_sides", "onto_context", "context_kind",
-           "in_clip", "BEFORE", "AFTER", "HERMITE_NAME", "IN_CLIP_NAME"]
+           "in_clip", "clip_keyframes", "BEFORE", "AFTER", "HERMITE_NAME", "IN_CLIP_NAME"]
 
 HERMITE_NAME = "Hermite through the frames beside the keyframes"      # bench rows (models/scvae/bench.py)
 IN_CLIP_NAME = "S-CVAE inside a clip (onto that Hermite path)"
@@ -106,6 +106,19 @@ def onto_context(q, r, slerp_q, slerp_r, dq, dr):
 
 
 BEFORE, AFTER = ("qp", "rp", "qp2", "rp2"), ("qn", "rn", "qn2", "rn2")   # the keys infill_between reads
+
+
+def clip_keyframes(m, k0: int, k1: int, contacts=(None, None)) -> tuple:
+    """``(start, end)`` keyframe dicts for a gap between frames ``k0`` and ``k1`` of motion ``m`` (a
+    :class:`~inbetween_jax.data.bvh.Motion`), with the two frames on each side where the motion holds them
+    (:data:`BEFORE` / :data:`AFTER`), as ``inbetween infill`` passes a gap inside a file to a ``context_base``
+    model.  ``contacts``: the keyframes' contact labels (4,), zeros where None."""
+    q, r = m.local_quats, m.root_pos
+    start, end = ({"q": q[k], "r": r[k], "c": np.zeros(4) if c is None else c} for k, c in zip((k0, k1), contacts))
+    for d, keys, (a, b) in ((start, BEFORE, (k0 - 1, k0 - 2)), (end, AFTER, (k1 + 1, k1 + 2))):
+        if 0 <= min(a, b) and max(a, b) < m.num_frames:
+            d.update(zip(keys, (q[a], r[a], q[b], r[b])))
+    return start, end
 
 
 def known_sides(start: dict, end: dict) -> tuple:
