@@ -73,9 +73,11 @@ folder (``inbetween build-bank`` writes it and sets the switches).  The
 autoregressive training length (``data.ar_steps``) and the scheduled-sampling curriculum
 (``data.ss_ramp_steps``, ``data.ss_max``) are ``data`` fields: they decide which frames a training sample holds
 and how often predictions are fed back as inputs.
-``model.remat`` is a speed switch only (``dots`` in every preset): the training autoregression's backward pass
-keeps the matmul outputs of each step and recomputes the rest (:mod:`inbetween_jax.train.remat`); the losses are
-unchanged, ``model.remat=`` keeps everything, as before 2026-12-07.
+``model.remat`` is a speed switch only (the losses are unchanged; :mod:`inbetween_jax.train.remat`): the empty
+string, every preset's, keeps everything the training autoregression's backward pass reads; ``dots`` keeps the
+matmul outputs of each step and recomputes the rest.  ``dots`` is 6 % faster per step in an interleaved A/B, but
+whole training runs took 5-7 % longer with it, in five runs of the time-to-quality recipe on two days
+(docs/results/speed.md, "the interaction model keeps everything").
 """
 from __future__ import annotations
 
@@ -152,7 +154,7 @@ class ModelConfig:
                                    # s-th nearest bank window alone at this weight, with its texture (0: off)
     ood_gate: bool = False         # inference: blend toward per-character interpolation as the window's context
                                    # and keyposes leave the training takes (:mod:`.gate`; ood.npz in the run folder)
-    remat: str = "dots"            # speed only (same losses): what the autoregression's backward pass keeps
+    remat: str = ""                # speed only (same losses): what the autoregression's backward pass keeps
     departure_cap: float = 0.0     # inference, with the gate: the fill departs from interpolation by at most this
                                    # many times interpolation's error as predicted from the context (:mod:`.gate`,
                                    # ``departure_weight``; 0: off)
