@@ -51,6 +51,10 @@ def test_sample_metrics_of_slerp_and_of_spread_samples(windows):
     one = S.sample_metrics(w, N_PAST, N, q, r, xm, xs)
     assert one["APD"] == 0.0 and one["pairwise_cm"] == 0.0
     assert one["best_L2P"] == pytest.approx(one["mean_L2P"]) and one["reach"] == 1.0
+    lo, hi = N_PAST - 1, N_PAST + N + 1              # the capture's own share, by the rule computed here
+    cap = np.linalg.norm(np.diff(S._positions(w, w.local_quats[:, lo:hi], w.root_pos[:, lo:hi]), axis=1),
+                         axis=-1).mean(-1)                                                    # (B, N + 1) steps
+    assert one["reach_truth"] == pytest.approx(np.mean(cap[:, -1] <= 2.0 * np.median(cap[:, 1:-1], -1)))
     shifts = np.array([-8.0, 0.0, 8.0])[:, None, None, None] * np.array([1.0, 0.0, 0.0])   # three root offsets (cm)
     qs, rs = np.broadcast_to(q, (3,) + q.shape), r[None] + shifts
     many = S.sample_metrics(w, N_PAST, N, qs, rs, xm, xs)

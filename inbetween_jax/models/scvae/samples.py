@@ -12,8 +12,8 @@ import numpy as np
 __all__ = ["NUM_SAMPLES", "COLUMNS", "RATIO_COLUMNS", "samples_rows", "length_rows", "validation_rows"]
 
 NUM_SAMPLES = 10
-COLUMNS = ("APD", "pairwise_cm", "mean_L2P", "best_L2P", "mean_cm", "best_cm", "reach", "foot_slide_mean",
-           "foot_slide_worst", "steps", "steps_truth")
+COLUMNS = ("APD", "pairwise_cm", "mean_L2P", "best_L2P", "mean_cm", "best_cm", "reach", "reach_truth",
+           "foot_slide_mean", "foot_slide_worst", "steps", "steps_truth")
 RATIO_COLUMNS = ("ratio_mean", "ratio_best", "pairwise_over_slerp")
 
 
