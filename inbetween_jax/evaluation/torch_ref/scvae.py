@@ -1,8 +1,14 @@
 """PyTorch-eager reference of one S-CVAE training step, for a JAX-vs-PyTorch speed benchmark on one CPU.
 
 Benchmark only: ``torch`` (``pip install .[bench]``, the torch 2.13.0 CPU build) is optional; this module
-imports without it and :func:`available` says whether it can run.  Eager mode (``make_step(...,
-compile_backend=...)``: the generator loss under ``torch.compile``), no TorchScript, default threads:
+imports without it and :func:`available` says whether it can run.  Eager mode, or ``make_step(...,
+compile_backend=...)``: the rollout's step function under ``torch.compile``, called in the Python loop, and the
+generator loss around the rollout compiled too.  Until 2026-12-07 the whole generator loss went to
+``torch.compile``: the latent noise's ``torch.Generator`` broke the graph inside every step, and after 8
+recompiles (a new graph per step's numbers) dynamo ran the step eagerly, so "compiled" was mostly eager.  Now
+the noise is drawn outside and the per-step numbers are 0-d tensors: one step graph (4 variants: which inputs
+carry gradients) serves all steps.  The whole unrolled rollout as one graph did not compile with inductor in
+10 min.  No TorchScript, default threads:
 ``torch.get_num_threads()`` is 2 (one per core) on the 2-core machine used for the timings.  With other
 processes busy on those cores, 2 threads ran the paper-size step 4-8x slower than 1 thread
 (``OMP_NUM_THREADS=1``): time on an idle CPU, or report the thread count with the numbers.
@@ -139,11 +145,17 @@ def _lstm(p, carry, x, hh=None):
     return (h, c), h
 
 
-def _tta_emb(tta: float, dim: int, basis: float):
-    """(1, dim) sinusoidal time-to-arrival embedding (Eq. 11-12)."""
+def _tta_emb(tta, dim: int, basis: float):
+    """(1, dim) sinusoidal time-to-arrival embedding (Eq. 11-12); tta a number or a 0-d tensor."""
     i = torch.arange(dim // 2, dtype=torch.float32)
-    ang = float(tta) / basis ** (2.0 * i / dim)
+    ang = torch.as_tensor(tta, dtype=torch.float32) / basis ** (2.0 * i / dim)
     return torch.stack([torch.sin(ang), torch.cos(ang)], -1).reshape(1, dim)
+
+
+def _scalar(x):
+    """A per-step number as a 0-d float32 tensor: one compiled step serves every step (a Python number would be
+    a constant of the compiled graph, recompiled for each value)."""
+    return torch.tensor(float(x), dtype=torch.float32)
 
 
 def _qnorm(q):
@@ -203,6 +215,7 @@ class _Model:
                                                   for n in ("v_std", "off_std", "offsets"))
         self.pos_unit = float(stats["pos_unit"])
         self.emb0 = _tta_emb(0.0, self.m.enc_out, self.m.tta_basis)
+        self.step_fn = self.gen_step           # make_step(compile_backend=...) puts the compiled step here
 
     def state_feat(self, f):
         """(B, 4J+7)."""
@@ -217,14 +230,15 @@ class _Model:
         """phase_{t+1} = phase_t + net([state_t, phase_t]) (B, 4)."""
         return frame["phase"] + _mlp(p, torch.cat([self.state_feat(frame), frame["phase"]], -1))
 
-    def gen_step(self, p, carry, cur, tgt, tta, gamma, gen):
+    def gen_step(self, p, carry, cur, tgt, tta, gamma, eps):
         """f_{i+1} = G(f_i | f_target) (encoder Fig. 3, decoder Fig. 5).  carry = (encoder (h, c), decoder (h, c)),
-        each (B, H); frames hold q (B, J, 4), r / v (B, 3), c (B, 4), phase (B, 4).  Returns (carry, frame, kl (B,))."""
+        each (B, H); frames hold q (B, J, 4), r / v (B, 3), c (B, 4), phase (B, 4); eps (B, Z): the latent's
+        standard normal noise.  Returns (carry, frame, kl (B,))."""
         m, pe, pd = self.m, p["enc"], p["dec"]
         b, j = cur["q"].shape[:2]
         tgt_q = _align_sign(tgt["q"], cur["q"])
         tgt_state = dict(tgt, q=tgt_q)
-        emb = _tta_emb(min(tta, m.tta_max), m.enc_out, m.tta_basis)
+        emb = _tta_emb(torch.clamp(tta, max=float(m.tta_max)), m.enc_out, m.tta_basis)
         t_raw = _mlp(pe["target"], tgt_q.reshape(b, -1))
         s1 = _mlp(pe["state"], self.state_feat(cur)) + emb                     # stage 1: current frame
         t1 = t_raw + emb
@@ -243,7 +257,7 @@ class _Model:
         mu = (1.0 - gamma) * mu_c + gamma * mu_t
         lv_c, lv_t = lv_c.clamp(-10.0, 5.0), lv_t.clamp(-10.0, 5.0)
         sigma = (1.0 - gamma) * torch.exp(0.5 * lv_c) + gamma * torch.exp(0.5 * lv_t)
-        z = mu + sigma * torch.randn(mu.shape, generator=gen)
+        z = mu + sigma * eps
         kl = 0.5 * (mu ** 2 + sigma ** 2 - 1.0 - 2.0 * torch.log(sigma + 1e-8)).sum(-1)
         dec_c, h = _lstm(pd["lstm"], carry[1], torch.cat([z, s1, t1], -1))     # decoder input [z, s emb, t emb]
         alpha = (torch.softmax(_mlp(pd["gating"], cur["phase"].detach()), -1) if m.phase_moe else torch.ones(b, 1))
@@ -255,8 +269,9 @@ class _Model:
             nxt["phase"] = self.phase_step(p["phase"], cur)
         return (enc_c, dec_c), nxt, kl
 
-    def rollout(self, params, start, target, length: int, steps: int, gen) -> dict:
-        """Bi-directional aligned rollout of ``steps`` steps per direction. Frames (B, S, ...), kl (B, S)."""
+    def rollout(self, params, start, target, length: int, steps: int, eps) -> dict:
+        """Bi-directional aligned rollout of ``steps`` steps per direction; eps (steps, 2, B, Z): the latent noise of
+        each step, forward then backward generator.  Frames (B, S, ...), kl (B, S)."""
         m, b = self.m, start["q"].shape[0]
         h = length // 2
         k = min(max(m.buffer_k, 1), max(h - 1, 1))
@@ -273,9 +288,9 @@ class _Model:
             aligned = m.aligning and n < h
             gam = (n / max(h, 1) if n < h else n / (h + k)) if m.latent_interp else 0.0
             tgt_f, tta_f = (_rev(cur_b), length - 2 * n) if aligned else (t0, length - n)
-            cf, nxt_f, kf = self.gen_step(params["fwd"], cf, cur_f, tgt_f, tta_f, gam, gen)
+            cf, nxt_f, kf = self.step_fn(params["fwd"], cf, cur_f, tgt_f, _scalar(tta_f), _scalar(gam), eps[n, 0])
             tgt_b, tta_b = (_rev(nxt_f), length - 2 * n - 1) if aligned else (_rev(s0), length - n)
-            cb, nxt_b, kb = self.gen_step(params["bwd"], cb, cur_b, tgt_b, tta_b, gam, gen)
+            cb, nxt_b, kb = self.step_fn(params["bwd"], cb, cur_b, tgt_b, _scalar(tta_b), _scalar(gam), eps[n, 1])
             cur_f, cur_b = nxt_f, nxt_b
             fwd.append(nxt_f), bwd.append(nxt_b), kl_f.append(kf), kl_b.append(kb)
         stack = lambda frames: {n: torch.stack([f[n] for f in frames], 1) for n in ("q", "r", "v", "c")}
@@ -360,8 +375,9 @@ def make_step(cfg, num_joints: int, parents, stats: dict, batch: dict, length: i
     pos_unit (), offsets (J, 3)); batch: ``models.scvae.train.make_batch`` output (q (B, T1, J, 4), r (B, T1, 3),
     c (B, T1, 4), phase_f / phase_b (B, T1, 4), p (B, T1, J, 3)); length: L = frames between keyframes
     (T1 - 1 = max_length fixes the step count).  The closure returns the generator loss (before the update).
-    compile_backend: None (eager) or a ``torch.compile`` backend ("inductor", "aot_eager") for the generator
-    loss (its forward and backward; compiled in the first call); the optimisers and the discriminator stay eager.
+    compile_backend: None (eager) or a ``torch.compile`` backend ("inductor", "aot_eager") for the rollout's step
+    and the generator loss around the rollout (forward and backward; compiled in the first calls); the rollout's
+    loop, the optimisers and the discriminator stay eager.
     """
     m, lc, tc = cfg.model, cfg.loss, cfg.train
     if not m.bidirectional:
@@ -380,15 +396,16 @@ def make_step(cfg, num_joints: int, parents, stats: dict, batch: dict, length: i
         raise ValueError(f"length={length} needs 1 <= length <= max_length={t1 - 1}")
     steps = (t1 - 1) // 2 + m.buffer_k                      # model.num_scan_steps(cfg.model, max_length)
     noise = torch.Generator().manual_seed(seed + 1)
+    eps_shape = (steps, 2, bt["q"].shape[0], m.latent_dim)
 
-    def generator_loss():
+    def generator_loss(eps):
         rev = (length - torch.arange(t1)).clamp(0, t1 - 1)
         start = {n: bt[n][:, 0] for n in ("q", "r", "c")}
         target = {n: bt[n][:, length] for n in ("q", "r", "c")}
         gt_f = {"q": bt["q"], "r": bt["r"], "c": bt["c"], "phase": bt["phase_f"], "p": bt["p"]}
         gt_b = {"q": bt["q"][:, rev], "r": bt["r"][:, rev], "c": bt["c"][:, rev], "phase": bt["phase_b"][:, rev],
                 "p": bt["p"][:, rev]}
-        res = model.rollout(params["gen"], start, target, length, steps, noise)
+        res = model.rollout(params["gen"], start, target, length, steps, eps)
         fwd, bwd, h, k = res["fwd"], res["bwd"], res["h"], res["k"]
         out = model.stitch(start, target, fwd, bwd, length, h, k, t1)
         both = _fk_positions(torch.cat([fwd["q"], bwd["q"]]), torch.cat([fwd["r"], bwd["r"]]), model.offsets,
@@ -408,10 +425,20 @@ def make_step(cfg, num_joints: int, parents, stats: dict, batch: dict, length: i
             loss = loss + lc.alpha_g * model.lsgan(frozen, model.disc_feat(out), None, length)
         return loss, out
 
-    gen_loss = generator_loss if compile_backend is None else torch.compile(generator_loss, backend=compile_backend)
+    gen_loss = generator_loss
+    if compile_backend is not None:
+        # the rollout's step compiled once and called in a Python loop, as a user compiles an autoregressive model
+        # (the whole unrolled rollout as one graph took inductor more than 10 min); the loss around it compiled too.
+        # Dynamo keeps one cache per function for every model built in the process (4 graphs each: widths and
+        # backends add up), and past its recompile limit (8) it would run the step eagerly.
+        torch._dynamo.config.recompile_limit = max(torch._dynamo.config.recompile_limit, 64)
+        # (dynamic=False: another width's shapes are new graphs, not symbolic shapes, which compiled slowly here)
+        model.step_fn = torch.compile(model.gen_step, backend=compile_backend, dynamic=False)
+        model.rollout = torch.compiler.disable(model.rollout)
+        gen_loss = torch.compile(generator_loss, backend=compile_backend, dynamic=False)
 
     def step() -> float:
-        loss, out = gen_loss()
+        loss, out = gen_loss(torch.randn(eps_shape, generator=noise))     # drawn outside: no graph break
         opt_g.zero_grad(set_to_none=True)
         loss.backward()
         torch.nn.utils.clip_grad_norm_(gen_leaves, tc.grad_clip)
