@@ -25,7 +25,7 @@ import argparse
 import numpy as np
 
 from inbetween_jax.data import load_dataset
-from inbetween_jax.evaluation.samples import SNAP_FACTOR, _positions
+from inbetween_jax.evaluation.samples import _positions, reach_share, step_lengths
 from inbetween_jax.models.scvae import infer
 from inbetween_jax.models.scvae.context import in_clip
 from inbetween_jax.models.scvae.gate import gate_windows, slerp_base
@@ -34,20 +34,16 @@ from inbetween_jax.shipped import shipped_run
 N_PAST = 10
 
 
-def steps(full: np.ndarray) -> np.ndarray:
-    """full (B, L + 2, J, 3) joint positions, keyframe to keyframe -> (B, L + 1) mean joint displacement per step."""
-    return np.linalg.norm(np.diff(full, axis=1), axis=-1).mean(-1)
-
-
-def summary(s: np.ndarray, truth: np.ndarray) -> str:
-    """One table row's cells: reach share (the issue's rule), last / capture's last (median, p10-p90) and last /
-    previous (p90, max) for steps s of a fill and truth of the capture, both (B, L + 1)."""
-    reach = np.mean(s[:, -1] <= SNAP_FACTOR * np.maximum(np.median(s[:, 1:-1], -1), 1e-9))
+def summary(full: np.ndarray, truth: np.ndarray) -> str:
+    """One table row's cells for a fill's joint positions ``full`` (B, L + 2, J, 3), keyframe to keyframe, and
+    the capture's step lengths ``truth`` (B, L + 1): reach share (the issue's rule), last / capture's last step
+    (median, p10-p90) and last / previous step (p90, max)."""
+    s = step_lengths(full)
     arrive = s[:, -1] / np.maximum(truth[:, -1], 1e-9)
     jump = s[:, -1] / np.maximum(s[:, -2], 1e-9)
     p10, p50, p90 = np.quantile(arrive, [0.1, 0.5, 0.9])
-    return (f"{100 * reach:.0f} % | {p50:.2f} ({p10:.2f}-{p90:.2f}) | {np.quantile(jump, 0.9):.2f} / "
-            f"{jump.max():.2f}")
+    return (f"{100 * reach_share(full[None]):.0f} % | {p50:.2f} ({p10:.2f}-{p90:.2f}) | "
+            f"{np.quantile(jump, 0.9):.2f} / {jump.max():.2f}")
 
 
 def main() -> None:
@@ -77,12 +73,13 @@ def main() -> None:
             gates = (trained.gate[0], trained.context_gate) if trained.context_gate is not None else trained.gate
             q, r = gate_windows(gates, wins, k0, k1, q, r, fa)[:2]
         cq, cr, hq, hr = in_clip(wins, N_PAST, n, q, r, mc)
-        truth = steps(pos[:, k0:k1 + 1])
-        fills = {"capture": truth, "Slerp": (sq, sr), "Hermite path (the base inside a clip)": (hq[0], hr[0]),
-                 "shipped S-CVAE inside a clip": (cq[0], cr[0])}
-        for name, f in fills.items():
-            st = f if name == "capture" else steps(np.concatenate([key, _positions(wins, *f), end], 1))
-            print(f"| {n} | {name} | {summary(st, truth)} |")
+        truth = step_lengths(pos[:, k0:k1 + 1])
+        fills = {"capture": pos[:, k0:k1 + 1]}
+        for name, (fq, fr) in (("Slerp", (sq, sr)), ("Hermite path (the base inside a clip)", (hq[0], hr[0])),
+                               ("shipped S-CVAE inside a clip", (cq[0], cr[0]))):
+            fills[name] = np.concatenate([key, _positions(wins, fq, fr), end], 1)
+        for name, full in fills.items():
+            print(f"| {n} | {name} | {summary(full, truth)} |")
 
 
 if __name__ == "__main__":

@@ -29,7 +29,7 @@ from inbetween_jax import metrics
 from inbetween_jax.evaluation.lafan1 import _fk
 from inbetween_jax.metrics.steps import lift_offs
 
-__all__ = ["SNAP_FACTOR", "sample_metrics", "pairwise_joint_distance", "per_window_l2p", "reach_share",
+__all__ = ["SNAP_FACTOR", "sample_metrics", "pairwise_joint_distance", "per_window_l2p", "reach_share", "step_lengths",
            "sample_spread"]
 
 SNAP_FACTOR = 2.0
@@ -61,12 +61,18 @@ def per_window_l2p(pred_pos, gt_pos, x_mean, x_std) -> np.ndarray:
     return np.stack([np.asarray(one(p, gt_pos)) for p in flat]).reshape(lead + (pred.shape[-4],))
 
 
+def step_lengths(full_pos: np.ndarray) -> np.ndarray:
+    """(..., L + 2, J, 3) joint positions from keyframe to keyframe -> (..., L + 1) mean joint displacement of
+    each step."""
+    return np.linalg.norm(np.diff(full_pos, axis=-3), axis=-1).mean(-1)
+
+
 def reach_share(full_pos: np.ndarray, factor: float = SNAP_FACTOR) -> float:
     """Share of the samples that arrive at the target keyframe.  full_pos (S, B, L + 2, J, 3): the start
     keyframe, the L generated frames and the target keyframe.  A sample arrives when its last step (last
     generated frame -> target, mean joint displacement) is at most ``factor`` times the median of its steps
     between generated frames."""
-    steps = np.linalg.norm(np.diff(full_pos, axis=2), axis=-1).mean(-1)        # (S, B, L + 1)
+    steps = step_lengths(full_pos)                                              # (S, B, L + 1)
     inner = np.median(steps[:, :, 1:-1], axis=-1) if steps.shape[2] > 2 else steps[:, :, 0]
     return float(np.mean(steps[:, :, -1] <= factor * np.maximum(inner, 1e-9)))
 
