@@ -1,5 +1,5 @@
 """Write the 31-joint CMU files of ``cmu_more/mb31`` (or the ASF-named ones of ``cmu_bvh``: 16_01, 16_02, 18_01) as
-BVH files on the 43-joint body of ``cmu_bvh`` / ``daz43`` (:func:`inbetween_jax.data.rig_transfer.transfer_mb31`;
+BVH files on the 43-joint body of ``cmu_bvh`` / ``daz43`` (:func:`inbetween_jax.data.rig_transfer.transfer_rig`;
 the ``cmu`` source does the same in memory).
 
     python experiments/retarget_mb31.py ../shared/data/cmu_more/mb31 OUT_DIR [--template FILE.bvh] [--only A.bvh,B.bvh]
@@ -16,7 +16,7 @@ import sys
 def main(argv=None) -> int:
     from inbetween_jax.data import read_bvh
     from inbetween_jax.data.bvh import write_bvh
-    from inbetween_jax.data.rig_transfer import transfer_mb31
+    from inbetween_jax.data.rig_transfer import transfer_rig
     from inbetween_jax.paths import shared_data_dir
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("src")
@@ -28,7 +28,7 @@ def main(argv=None) -> int:
     os.makedirs(a.out, exist_ok=True)
     wanted = set(a.only.split(",")) if a.only else None
     for name in sorted(n for n in os.listdir(a.src) if n.lower().endswith(".bvh") and (not wanted or n in wanted)):
-        m = transfer_mb31(read_bvh(os.path.join(a.src, name)), template)
+        m = transfer_rig(read_bvh(os.path.join(a.src, name)), template)
         write_bvh(os.path.join(a.out, name), m)
         print(f"{name}: {m.num_frames} frames", flush=True)
     return 0

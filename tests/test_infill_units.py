@@ -80,11 +80,11 @@ def test_scvae_fills_a_file_in_metres_as_in_centimetres(walk_files, tmp_path, ca
 def test_the_31_joint_cmu_rig_is_put_on_the_checkpoints_body_as_in_training(tmp_path, capsys):
     """A validation subject's capture on CMU's 31-joint rig (``16_01``: ASF names, CMU's 0.0564 m unit) was refused
     (it lacks 19 of the 21 joints by name).  Now it takes the training data's route (bone directions onto the
-    43-joint body, then its 21 joints) with every frame kept, and the CAE fills it; the known frames of the output
-    are the transferred capture's."""
+    43-joint body, then its 21 joints) with every frame kept, and the CAE fills it; the output goes back on the
+    file's own rig, its known frames the file's own."""
     from inbetween_jax.data import Skeleton
     from inbetween_jax.data.retarget import match_joints, prepare, restrict
-    from inbetween_jax.data.rig_transfer import transfer_mb31
+    from inbetween_jax.data.rig_transfer import transfer_rig
     from inbetween_jax.shipped import shipped_run
     path = os.path.join(SHARED_DATA, "cmu_bvh", "16_01.bvh")
     if not os.path.isfile(path):
@@ -96,23 +96,24 @@ def test_the_31_joint_cmu_rig_is_put_on_the_checkpoints_body_as_in_training(tmp_
     assert prep.motion.num_frames == raw.num_frames and prep.motion.skeleton.names == skel.names
     assert "31-joint CMU rig" in prep.note and prep.factor == 1.0
     body = read_bvh(os.path.join(SHARED_DATA, "cmu_bvh", "02_01.bvh"), 0, 2)      # the training route's template
-    trained = transfer_mb31(raw, body, drop_tpose=False)
+    trained = transfer_rig(raw, body, drop_tpose=False)
     trained = restrict(trained, match_joints(trained.skeleton, skel, path), skel)
     np.testing.assert_allclose(prep.motion.global_positions(), trained.global_positions(), atol=1e-6)
     (out,), info = _infill(["--model", "cae", "--bvh", path, "--gaps", "100:160"], tmp_path / "out", capsys)
-    assert out.skeleton.names == skel.names and out.num_frames == raw.num_frames
-    g, want = out.global_positions(), trained.global_positions()
+    assert out.skeleton.names == raw.skeleton.names and out.num_frames == raw.num_frames
+    g, want = out.global_positions(), raw.global_positions()
     np.testing.assert_allclose(g[:100], want[:100], atol=0.01)
+    np.testing.assert_allclose(g[160:], want[160:], atol=0.01)
     assert np.linalg.norm(g[100:160] - want[100:160], axis=-1).mean() > 0.01   # the gap is filled, not copied
     assert len(info["gaps_ood"]) == 1
 
 
-def test_takes_31_joint_rig_needs_the_bodys_joints():
+def test_takes_rig_transfer_needs_the_bodys_joints():
     from inbetween_jax.data import Skeleton
-    from inbetween_jax.data.rig_transfer import takes_31_joint_rig
+    from inbetween_jax.data.rig_transfer import takes_rig_transfer
     from inbetween_jax.shipped import shipped_run
     skel = Skeleton.from_dict(shipped_run("cae").skeleton)
-    assert takes_31_joint_rig(skel)
+    assert takes_rig_transfer(skel)
     names = list(skel.names)
     names[names.index("lShin")] = "lKnee"
-    assert not takes_31_joint_rig(dataclasses.replace(skel, names=tuple(names)))
+    assert not takes_rig_transfer(dataclasses.replace(skel, names=tuple(names)))

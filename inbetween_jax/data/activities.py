@@ -6,7 +6,9 @@ description of each trial, grouped), and for the trials outside it (``cmu_bvh/``
 pairs) the table below, from the CMU index descriptions of those subjects' trials (subject 2: walk, run/jog,
 jump; 3: walk on uneven terrain; 5-8, 10, 12: walk; 9: run; 13, 14: various everyday behaviours; 16_01 / 16_02:
 jumps; 18: two-person everyday interaction; 60 / 61: salsa).  09_10 is labelled ``jump``: unlike the other
-subject-9 runs its hips move 1.4 m vertically.  A name the tables do not know is ``other``.
+subject-9 runs its hips move 1.4 m vertically.  LaFAN1 files (``walk4_subject1.bvh``) are grouped by their
+action (:data:`LAFAN1_ACTIONS`; falls, floor work and pushes are ``other``).  A name the tables do not know is
+``other``.
 """
 from __future__ import annotations
 
@@ -15,13 +17,16 @@ import functools
 import os
 import re
 
-__all__ = ["GROUPS", "activity_group", "trial_of"]
+__all__ = ["GROUPS", "LAFAN1_ACTIONS", "activity_group", "trial_of"]
 
 GROUPS = ("walk", "run", "jump", "dance", "martial arts/fight", "sports", "climb/playground", "everyday", "other")
 
 _SUBJECT = {"02": "walk", "03": "walk", "05": "walk", "06": "walk", "07": "walk", "08": "walk", "09": "run",
             "10": "walk", "12": "walk", "13": "everyday", "14": "everyday", "18": "everyday", "60": "dance",
             "61": "dance"}
+LAFAN1_ACTIONS = {"walk": "walk", "run": "run", "sprint": "run", "jumps": "jump", "dance": "dance",
+                  "fight": "martial arts/fight", "fightAndSports": "sports", "obstacles": "climb/playground",
+                  "aiming": "everyday"}
 _TRIAL = {"02_03": "run", "02_04": "jump", "09_10": "jump", "16_01": "jump", "16_02": "jump"}
 
 
@@ -46,7 +51,8 @@ def activity_group(name: str) -> str:
     """The activity group (one of :data:`GROUPS`) of a CMU trial named in ``name``."""
     trial = trial_of(name)
     if trial is None:
-        return "other"
+        lafan1 = re.fullmatch(r"([A-Za-z]+)\d+_subject\d+(\.bvh)?", os.path.basename(str(name)))
+        return LAFAN1_ACTIONS.get(lafan1.group(1), "other") if lafan1 else "other"
     if trial in _TRIAL:
         return _TRIAL[trial]
     tsv = _files_tsv().get(trial)

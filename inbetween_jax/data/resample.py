@@ -5,7 +5,8 @@ Window lengths, offsets and per-frame thresholds of the data layer are in frames
 to it when loaded: frame ``k`` of the result is the motion at time ``k / fps`` seconds, rotations slerped and
 positions linearly interpolated between the two source frames around it.  When the source rate is an integer
 multiple of the target (120 -> 30 Hz) every sample falls on a source frame and the result is an exact
-subsample.
+subsample.  :func:`fill_unknown` interpolates the same way across runs of unknown frames (a generated motion put
+back on a user's rig keeps the user's values there).
 """
 from __future__ import annotations
 
@@ -102,7 +103,8 @@ def resample_motion(motion, fps: float = WORKING_FPS):
     return dataclasses.replace(motion, local_quats=_sign_continuous(quats), local_pos=pos, frame_time=1.0 / fps)
 
 
-__all__ = ["WORKING_FPS", "FRAME_TOL", "nominal_fps", "resample_motion", "sample_times", "slerp", "check_tempo"]
+__all__ = ["WORKING_FPS", "FRAME_TOL", "nominal_fps", "resample_motion", "sample_times", "slerp", "check_tempo",
+           "fill_unknown", "known_frames"]
 
 
 def check_tempo(tempo) -> tuple:
@@ -115,3 +117,38 @@ def check_tempo(tempo) -> tuple:
     if any(not s > 0 for s in speeds):
         raise ValueError(f"data.tempo: speeds must be positive, got {list(tempo)}")
     return speeds
+
+
+def fill_unknown(values, known, rotations: bool):
+    """(T, J, C) ``values`` with every run of unknown frames (``known`` (T,) bool False) interpolated between
+    the known frames around it (slerp for rotations, C=4; lerp otherwise); held at the clip's ends."""
+    out = np.array(values, np.float64, copy=True)
+    known = np.asarray(known, bool)
+    idx = np.flatnonzero(known)
+    if len(idx) == 0:
+        raise ValueError("fill_unknown: no known frame")
+    t = np.arange(len(out))
+    hi = np.clip(np.searchsorted(idx, t), 0, len(idx) - 1)
+    lo = np.clip(hi - 1, 0, len(idx) - 1)
+    a, b = idx[lo], idx[hi]
+    a = np.where(a > t, b, a)                      # before the first known frame: hold it
+    b = np.where(b < t, a, b)                      # after the last: hold it
+    w = np.where(b > a, (t - a) / np.maximum(b - a, 1), 0.0)
+    miss = ~known
+    if rotations:
+        out[miss] = slerp(out[a[miss]], out[b[miss]], w[miss][:, None])
+    else:
+        out[miss] = out[a[miss]] + w[miss][:, None, None] * (out[b[miss]] - out[a[miss]])
+    return out
+
+
+def known_frames(generated, user, known, caller: str) -> np.ndarray:
+    """(T,) bool: ``known`` (default: the first and the last frame) for a generated motion put back on ``user``'s
+    rig; raises ValueError (naming ``caller``) when the two frame counts differ."""
+    t_len = generated.num_frames
+    if user.num_frames != t_len:
+        raise ValueError(f"{caller}: {t_len} generated frames but {user.num_frames} user frames")
+    if known is None:
+        known = np.zeros(t_len, bool)
+        known[[0, -1]] = True
+    return np.asarray(known, bool)

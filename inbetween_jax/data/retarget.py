@@ -16,9 +16,10 @@ import dataclasses
 
 import numpy as np
 
+from inbetween_jax.data.resample import fill_unknown, known_frames
 from inbetween_jax.errors import UserError
 
-__all__ = ["JointMatch", "match_joints", "restrict", "expand", "fill_unknown", "Prepared", "prepare", "to_frame"]
+__all__ = ["JointMatch", "match_joints", "restrict", "expand", "Prepared", "prepare", "to_frame"]
 
 MAX_LISTED = 8
 UNIT_TOLERANCE = 0.02     # a file whose body is within 2 % of the checkpoint's size is taken in the same unit
@@ -108,30 +109,6 @@ def restrict(motion, match: JointMatch, ckpt_skel):
     return Motion(skel, np.stack(quats, axis=1), np.stack(pos, axis=1), motion.frame_time, motion.source)
 
 
-def fill_unknown(values, known, rotations: bool):
-    """(T, J, C) ``values`` with every run of unknown frames (``known`` (T,) bool False) interpolated between
-    the known frames around it (slerp for rotations, C=4; lerp otherwise); held at the clip's ends."""
-    from inbetween_jax.data.resample import slerp
-    out = np.array(values, np.float64, copy=True)
-    known = np.asarray(known, bool)
-    idx = np.flatnonzero(known)
-    if len(idx) == 0:
-        raise ValueError("fill_unknown: no known frame")
-    t = np.arange(len(out))
-    hi = np.clip(np.searchsorted(idx, t), 0, len(idx) - 1)
-    lo = np.clip(hi - 1, 0, len(idx) - 1)
-    a, b = idx[lo], idx[hi]
-    a = np.where(a > t, b, a)                      # before the first known frame: hold it
-    b = np.where(b < t, a, b)                      # after the last: hold it
-    w = np.where(b > a, (t - a) / np.maximum(b - a, 1), 0.0)
-    miss = ~known
-    if rotations:
-        out[miss] = slerp(out[a[miss]], out[b[miss]], w[miss][:, None])
-    else:
-        out[miss] = out[a[miss]] + w[miss][:, None, None] * (out[b[miss]] - out[a[miss]])
-    return out
-
-
 def expand(generated, user, match: JointMatch, known=None):
     """A generated motion on the checkpoint's joints back on the user's full skeleton.
 
@@ -142,13 +119,7 @@ def expand(generated, user, match: JointMatch, known=None):
     generated rotations with the extra joints' composition undone, the root trajectory the generated one.
     """
     from inbetween_jax.geometry.quaternion import quat_fix_sign_np, quat_inv, quat_mul
-    t_len = generated.num_frames
-    if user.num_frames != t_len:
-        raise ValueError(f"expand: {t_len} generated frames but {user.num_frames} user frames")
-    if known is None:
-        known = np.zeros(t_len, bool)
-        known[[0, -1]] = True
-    known = np.asarray(known, bool)
+    known = known_frames(generated, user, known, "expand")
     q = fill_unknown(user.local_quats, known, rotations=True)
     p = fill_unknown(user.local_pos, known, rotations=False)
     miss = ~known
@@ -167,8 +138,10 @@ def expand(generated, user, match: JointMatch, known=None):
 class Prepared:
     """One input file ready for a checkpoint: ``full`` (the file at the checkpoint's rate, user's rig),
     ``motion`` (``full`` on the checkpoint's joints and in its length unit; ``full`` itself for an exact match in
-    the same unit), ``match`` (None for an exact match), ``ratio`` (checkpoint fps / file fps; 1.0 when not
-    resampled), ``note``, ``factor`` (checkpoint units per file unit; 1.0 when not converted)."""
+    the same unit), ``match`` (None for an exact match or a transfer), ``ratio`` (checkpoint fps / file fps; 1.0
+    when not resampled), ``note``, ``factor`` (checkpoint units per file unit; 1.0 when not converted),
+    ``transfer`` (the :data:`~inbetween_jax.data.rig_transfer.RIGS` profile when another rig was put on the
+    checkpoint's body by bone directions, else None)."""
     path: str
     full: object
     motion: object
@@ -176,10 +149,30 @@ class Prepared:
     ratio: float
     note: str | None
     factor: float = 1.0
+    transfer: str | None = None
 
     def to_file_unit(self, motion):
         """A motion in the checkpoint's unit (``motion``'s, or one generated from it) -> the file's unit."""
         return motion if self.factor == 1.0 else motion.scaled(1.0 / self.factor)
+
+    @property
+    def on_other_rig(self) -> bool:
+        """Whether generated motions need the file's rig put back (:meth:`on_user_rig`)."""
+        return self.match is not None or self.transfer is not None
+
+    def on_user_rig(self, generated, user=None, known=None):
+        """A motion generated on the checkpoint's joints and unit -> the file's rig and unit.  ``user``: a Motion
+        on the file's rig with the same frame count whose ``known`` frames (default the first and the last) are
+        kept exactly (default :attr:`full`); :func:`expand` for a larger rig, :func:`~inbetween_jax.data.
+        rig_transfer.transfer_back` for a transferred one."""
+        motion = self.to_file_unit(generated)
+        user = self.full if user is None else user
+        if self.match is not None:
+            return expand(motion, user, self.match, known)
+        if self.transfer is not None:
+            from inbetween_jax.data.rig_transfer import transfer_back
+            return transfer_back(motion, user, known)
+        return motion
 
 
 def to_frame(prep: Prepared, frame: int, side: str | None = None) -> int:
@@ -207,7 +200,7 @@ def prepare(motion, path: str, ckpt_skel, fps=None) -> Prepared:
     line (first differing joint); a larger one lacking joints with :func:`match_joints`'s (the missing joints).
     """
     from inbetween_jax.data.resample import nominal_fps, resample_motion
-    parts, ratio, full = [], 1.0, motion
+    parts, ratio, full, transfer = [], 1.0, motion, None
     if fps is not None:
         src = nominal_fps(motion.frame_time)
         full = resample_motion(motion, float(fps))
@@ -216,16 +209,18 @@ def prepare(motion, path: str, ckpt_skel, fps=None) -> Prepared:
             parts.append(f"{src:g} fps resampled to the checkpoint's {float(fps):g} fps")
     match, out = None, full
     if ckpt_skel is not None and not full.skeleton.same_topology(ckpt_skel):
-        from inbetween_jax.data.rig_transfer import on_31_joint_rig, takes_31_joint_rig, transfer_mb31
+        from inbetween_jax.data.rig_transfer import RIGS, rig_profile, takes_rig_transfer, transfer_rig
         try:
             match = match_joints(full.skeleton, ckpt_skel, path)
         except UserError:
-            if on_31_joint_rig(full.skeleton.names) and takes_31_joint_rig(ckpt_skel):
-                # CMU's 31-joint rig: put on the checkpoint's body as its training captures were
-                full = out = transfer_mb31(full, ckpt_skel, drop_tpose=False)
+            transfer = rig_profile(full.skeleton.names)
+            if transfer is not None and takes_rig_transfer(ckpt_skel):
+                # a known rig (CMU's 31-joint one, LaFAN1 / Mixamo names): put on the checkpoint's body
+                out = transfer_rig(full, ckpt_skel, drop_tpose=False)
                 match = None
-                parts.append("the 31-joint CMU rig put on the checkpoint's body by bone directions (as its "
-                             "training captures were); the output is on that body")
+                how = " (as its training captures were)" if transfer in ("mb31", "cmu-asf") else ""
+                parts.append(f"the {RIGS[transfer][0]} rig put on the checkpoint's body by bone directions{how}, "
+                             "the output back on the file's rig")
             else:
                 if full.skeleton.num_joints <= ckpt_skel.num_joints:     # not a larger rig: say how it differs
                     from inbetween_jax.data.user_input import check_skeleton
@@ -247,4 +242,4 @@ def prepare(motion, path: str, ckpt_skel, fps=None) -> Prepared:
         else:
             factor = 1.0
     note = f"{path}: {'; '.join(parts)}" if parts else None
-    return Prepared(path, full, out, match, ratio, note, factor)
+    return Prepared(path, full, out, match, ratio, note, factor, transfer)

@@ -8,7 +8,7 @@ validation split of every source.
 * train -- the embedded training files plus, from the shared mocap folder
   (:func:`~inbetween_jax.paths.shared_data_dir`), ``cmu_bvh/*.bvh``, ``cmu_more/daz43/*.bvh``,
   ``cmu_more/mb31/*.bvh`` (another rig: put on the 43-joint body of ``cmu_bvh/02_01.bvh`` by bone directions,
-  :func:`~inbetween_jax.data.rig_transfer.transfer_mb31`) and both dancers of every ``cmu_pairs`` take, each as
+  :func:`~inbetween_jax.data.rig_transfer.transfer_rig`) and both dancers of every ``cmu_pairs`` take, each as
   a single-person motion.  Trials of CMU subjects 13 and 14 are never
   trained on, trials already in the embedded set (compared by trial name ``NN_MM``) are dropped, the 31-joint
   ``cmu_bvh`` files (16_01, 16_02, 18_01, with CMU's ASF joint names) take the mb31 route, and files on any
@@ -87,8 +87,8 @@ def _on_reference(path: str, ref_names) -> bool:
 
 
 def _on_mb31_rig(path: str) -> bool:
-    """Whether the file's hierarchy holds every joint :func:`~inbetween_jax.data.rig_transfer.transfer_mb31`
-    reads (under the MotionBuilder or the ASF names)."""
+    """Whether the file's hierarchy is CMU's 31-joint rig (the MotionBuilder or the ASF names), which
+    :func:`~inbetween_jax.data.rig_transfer.transfer_rig` puts on the training body."""
     from inbetween_jax.data.rig_transfer import on_31_joint_rig
     return on_31_joint_rig(_header_joints(path, os.stat(path).st_mtime_ns))
 
@@ -244,7 +244,7 @@ def read_cmu_train(files: list, split: str, fps: float) -> tuple:
     """(motions on the embedded skeleton at ``fps``, the line saying what they are) for the ``cmu`` training
     files ``files`` (all of ``train``, or its ``val`` / ``fit`` part)."""
     from inbetween_jax.data.bvh import read_bvh
-    from inbetween_jax.data.rig_transfer import transfer_mb31
+    from inbetween_jax.data.rig_transfer import transfer_rig
     from inbetween_jax.paths import shared_data_dir
     shared, ref = shared_data_dir(required=True), reference_skeleton()
     motions, frames, count, scaled, moved = [], Counter(), Counter(), Counter(), Counter()
@@ -252,7 +252,7 @@ def read_cmu_train(files: list, split: str, fps: float) -> tuple:
         label = _folder_label(f, shared)
         raw = read_bvh(f)
         if not _on_reference(f, ref.names) and _on_mb31_rig(f):
-            raw = transfer_mb31(raw, _body_template())
+            raw = transfer_rig(raw, _body_template())
             moved[label] += 1
         m, factor = to_reference(raw, ref, fps)
         frames[label] += m.num_frames

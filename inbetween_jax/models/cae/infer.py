@@ -235,7 +235,7 @@ def infill(args, run: Run) -> InfillResult:
         UserError: unreadable BVH, a skeleton lacking checkpoint joints, malformed or out-of-range gaps,
             non-finite output.
     """
-    from inbetween_jax.data.retarget import expand, prepare
+    from inbetween_jax.data.retarget import prepare
     from inbetween_jax.data.user_input import finite_or_fail, parse_gaps, read_motion, resampled_gaps
     parse_gaps(args.gaps)                                             # syntax first
     user = read_motion(args.bvh)
@@ -256,8 +256,7 @@ def infill(args, run: Run) -> InfillResult:
     gen = np.zeros(motion.num_frames, bool)
     for a, b in gaps:
         gen[a:b] = True
-    filled = prep.to_file_unit(res["motion"])
-    out = filled if prep.match is None else expand(filled, prep.full, prep.match, ~gen)
+    out = prep.on_user_rig(res["motion"], known=~gen)
     summary = {"input": args.bvh, "gaps": file_gaps, "frames": motion.num_frames, "step": model.step,
                "error_cm_mean": res["error_cm"][0], "fk_gap_cm": res["fk_gap_cm"],
                "refit_frames": int(np.sum(res["frames"]))}

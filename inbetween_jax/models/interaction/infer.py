@@ -211,10 +211,10 @@ def infill(args, run: Run) -> InfillResult:
     samples = []
     for i, name in enumerate(_sample_names(args.samples)):
         motions = []
-        for c, (path, prep, s, _, kprep, kf, factor) in enumerate(chars):
+        for c, (path, prep, s, _, kprep, kf, _) in enumerate(chars):
             motion = features_to_motion(feats[i, c], prep.motion, s, kprep.motion, kf)
             finite_or_fail(run.run_dir, motion.local_quats, motion.local_pos)
-            motions.append(_on_user_rig(motion, prep, s, kprep, kf, factor))
+            motions.append(_on_user_rig(motion, prep, s, kprep, kf))
         samples.append((name, motions, None))
     summary = {"a": f"{pa}:{own[0][0]}", "b": f"{pb}:{own[1][0]}", "key_a": f"{chars[0][3]}:{own[0][1]}",
                "key_b": f"{chars[1][3]}:{own[1][1]}", "frames": args.frames, "samples": args.samples,
@@ -243,16 +243,13 @@ def _on_run_rig(motion, path: str, skel, fps, notes: list):
     return prep, prep.factor
 
 
-def _on_user_rig(motion, prep, start: int, kprep, key_frame: int, factor: float):
+def _on_user_rig(motion, prep, start: int, kprep, key_frame: int):
     """A generated Motion on the run's rig and unit -> the user's file rig and unit (at the run's rate)."""
-    if factor != 1.0:
-        motion = motion.scaled(1.0 / factor)
-    if prep.match is None:
-        return motion
-    from inbetween_jax.data.retarget import expand
+    if not prep.on_other_rig:
+        return prep.to_file_unit(motion)
     t = motion.num_frames
     idx = np.full(t, start)        # key_frame is the key file's: taken from kprep.full below
     keys = dataclasses.replace(prep.full, local_quats=prep.full.local_quats[idx].copy(),
                                local_pos=prep.full.local_pos[idx].copy())
     keys.local_quats[-1], keys.local_pos[-1] = kprep.full.local_quats[key_frame], kprep.full.local_pos[key_frame]
-    return expand(motion, keys, prep.match)
+    return prep.on_user_rig(motion, keys)

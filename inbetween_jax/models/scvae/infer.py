@@ -345,7 +345,7 @@ def infill(args, run):
     """
     from inbetween_jax.data import lafan1
     from inbetween_jax.data.datasets import GENERIC_CONTACT_VELFACTOR
-    from inbetween_jax.data.retarget import expand, prepare, to_frame
+    from inbetween_jax.data.retarget import prepare, to_frame
     from inbetween_jax.data.user_input import check_skeleton, finite_or_fail, read_keyframe, same_skeleton
     from inbetween_jax.errors import UserError
     from inbetween_jax.models.spec import InfillResult, sample_names
@@ -407,7 +407,7 @@ def infill(args, run):
     w = (np.arange(t) / (t - 1))[:, None, None]
     base_pos = (1 - w) * sm.local_pos[sf] + w * em.local_pos[ef]       # joints with position channels: lerp
     keys = None
-    if ps.match is not None:        # the user's full rig: keyframes at both ends, the rest filled by expand
+    if ps.on_other_rig:             # the user's rig: keyframes at both ends, the rest from the generated motion
         idx = np.full(t, sf)          # frame ef is the end file's: taken from pe.full below, never from ps.full
         keys = dataclasses.replace(ps.full, local_quats=ps.full.local_quats[idx], local_pos=ps.full.local_pos[idx])
         keys.local_quats[-1], keys.local_pos[-1] = pe.full.local_quats[ef], pe.full.local_pos[ef]
@@ -415,8 +415,8 @@ def infill(args, run):
     for name, q, r in zip(sample_names(args.samples), res["q"], res["r"]):
         pos = base_pos.copy()
         pos[:, 0] = r
-        out = ps.to_file_unit(dataclasses.replace(sm, local_quats=q, local_pos=pos))
-        samples.append((name, [out if keys is None else expand(out, keys, ps.match)], None))
+        out = dataclasses.replace(sm, local_quats=q, local_pos=pos)
+        samples.append((name, [ps.on_user_rig(out, keys)], None))
     from inbetween_jax.evaluation.samples import sample_spread
     spread = sample_spread([m[0] for _, m, _ in samples])
     blends = [0.0] + [round(toward, 4)] * (args.samples - 1)     # sample 0 is the fill
