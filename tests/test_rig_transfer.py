@@ -90,9 +90,13 @@ def test_the_asf_named_31_joint_files_take_the_same_route():
 
 
 def test_a_capture_on_another_rig_is_refused_in_one_line():
+    """A rig whose hands no name says (``lHand`` -> ``bone_12``) is neither a known rig nor readable by roles."""
+    import dataclasses
     template = read_bvh(TEMPLATE, 0, 2)
+    names = tuple("bone_12" if n == "lHand" else n for n in template.skeleton.names)
+    other = dataclasses.replace(template, skeleton=dataclasses.replace(template.skeleton, names=names))
     with pytest.raises(UserError, match="02_01.bvh: not a rig known to the bone-direction transfer") as err:
-        transfer_rig(template, template)
+        transfer_rig(other, template)
     assert "\n" not in str(err.value)
 
 
@@ -135,7 +139,7 @@ def test_a_lafan1_capture_goes_on_the_body_by_the_same_bones():
 @pytest.mark.skipif(not os.path.isfile(LAFAN1_WALK), reason="lafan1/ not found beside the repository")
 def test_infill_takes_a_lafan1_file_with_the_shipped_weights(tmp_path):
     """``prepare`` (infill's route) puts a LaFAN1 file on the shipped checkpoint's 21 joints, every frame kept,
-    keeps the file's own rig for the way back, and says so in its note; a rig missing a needed joint is still
+    keeps the file's own rig for the way back, and says so in its note; a rig whose hand no name says is still
     refused in one line."""
     import dataclasses
     from inbetween_jax.data import Skeleton
@@ -149,7 +153,7 @@ def test_infill_takes_a_lafan1_file_with_the_shipped_weights(tmp_path):
     assert "LaFAN1" in prep.note and "back on the file's rig" in prep.note
     assert prep.transfer == "spine3" and prep.on_other_rig and prep.full.skeleton.names == raw.skeleton.names
     names = list(raw.skeleton.names)
-    names[names.index("LeftForeArm")] = "LeftElbow"
+    names[names.index("LeftHand")] = "joint_17"          # no hand by name: neither the table nor the roles
     broken = dataclasses.replace(raw, skeleton=dataclasses.replace(raw.skeleton, names=tuple(names)))
     with pytest.raises(UserError) as err:
         prepare(broken, LAFAN1_WALK, skel, run.fps)
@@ -241,3 +245,40 @@ def test_infill_writes_an_s_cvae_transition_on_a_lafan1_files_rig(tmp_path, caps
         g, want = s.global_positions(), raw.global_positions()
         np.testing.assert_allclose(g[[0, -1]], want[[0, -1]], atol=0.01)
         assert np.all(np.isfinite(g)) and np.linalg.norm(g[16] - g[0], axis=-1).mean() > 0.5
+
+
+# LaFAN1's joints under the names of two other common rigs (the Unreal mannequin's, and upper-case side suffixes
+# with a two-word spine as in several public sets); neither is in the table of rigs, so both are read by roles
+UE_NAMES = {"Hips": "pelvis", "Spine": "spine_01", "Spine1": "spine_02", "Spine2": "spine_03", "Neck": "neck_01",
+            "Head": "head", **{f"{side}{a}": f"{b}_{side[0].lower()}" for side in ("Left", "Right") for a, b in (
+                ("Shoulder", "clavicle"), ("Arm", "upperarm"), ("ForeArm", "lowerarm"), ("Hand", "hand"),
+                ("UpLeg", "thigh"), ("Leg", "calf"), ("Foot", "foot"), ("Toe", "ball"))}}
+SUFFIX_NAMES = {"Hips": "Hips", "Spine": "Spine", "Spine1": "Chest", "Spine2": "UpperChest", "Neck": "Neck",
+                "Head": "Head", **{f"{side}{a}": f"{b}_{side[0]}" for side in ("Left", "Right") for a, b in (
+                    ("Shoulder", "Shoulder"), ("Arm", "UpperArm"), ("ForeArm", "LowerArm"), ("Hand", "Hand"),
+                    ("UpLeg", "UpperLeg"), ("Leg", "LowerLeg"), ("Foot", "Foot"), ("Toe", "Toes"))}}
+
+
+@pytest.mark.skipif(not os.path.isfile(LAFAN1_WALK), reason="lafan1/ not found beside the repository")
+@pytest.mark.parametrize("rename", [UE_NAMES, SUFFIX_NAMES], ids=["unreal", "suffix"])
+def test_a_rig_outside_the_table_is_read_by_its_joints_roles(rename):
+    """The same LaFAN1 capture under other names: :func:`rig_of` reads the roles from words and hierarchy (sides,
+    hands, feet, where the arms' and legs' chains meet), and the transfer there and back is the table's, exactly."""
+    import dataclasses
+    from inbetween_jax.data import Skeleton
+    from inbetween_jax.data.rig_transfer import rig_of, transfer_back
+    from inbetween_jax.shipped import shipped_run
+    capture = read_bvh(LAFAN1_WALK, 300, 360)
+    names = tuple(rename[n] for n in capture.skeleton.names)
+    other = dataclasses.replace(capture, skeleton=dataclasses.replace(capture.skeleton, names=names))
+    profile, alias = rig_of(other.skeleton)
+    assert profile == "roles" and rig_profile(names) is None
+    table, roles = canonical_names(capture.skeleton.names, "spine3"), canonical_names(names, profile, alias)
+    used = [b for b in roles if not b.endswith("(unused)")]
+    assert len(used) == 19 and [a for a, b in zip(table, roles) if not b.endswith("(unused)")] == used
+    skel = Skeleton.from_dict(shipped_run("cae").skeleton)
+    want = transfer_rig(capture, skel, drop_tpose=False)
+    got = transfer_rig(other, skel, drop_tpose=False)
+    np.testing.assert_array_equal(got.local_quats, want.local_quats)
+    np.testing.assert_array_equal(got.local_pos, want.local_pos)
+    np.testing.assert_array_equal(transfer_back(got, other).local_quats, transfer_back(want, capture).local_quats)

@@ -209,17 +209,18 @@ def prepare(motion, path: str, ckpt_skel, fps=None) -> Prepared:
             parts.append(f"{src:g} fps resampled to the checkpoint's {float(fps):g} fps")
     match, out = None, full
     if ckpt_skel is not None and not full.skeleton.same_topology(ckpt_skel):
-        from inbetween_jax.data.rig_transfer import RIGS, rig_profile, takes_rig_transfer, transfer_rig
+        from inbetween_jax.data.rig_transfer import rig_label, rig_of, takes_rig_transfer, transfer_rig
         try:
             match = match_joints(full.skeleton, ckpt_skel, path)
         except UserError:
-            transfer = rig_profile(full.skeleton.names)
-            if transfer is not None and takes_rig_transfer(ckpt_skel):
+            found = rig_of(full.skeleton)
+            transfer = found[0] if found else None
+            if transfer and takes_rig_transfer(ckpt_skel):
                 # a known rig (CMU's 31-joint one, LaFAN1 / Mixamo names): put on the checkpoint's body
                 out = transfer_rig(full, ckpt_skel, drop_tpose=False)
                 match = None
                 how = " (as its training captures were)" if transfer in ("mb31", "cmu-asf") else ""
-                parts.append(f"the {RIGS[transfer][0]} rig put on the checkpoint's body by bone directions{how}, "
+                parts.append(f"the {rig_label(transfer)} put on the checkpoint's body by bone directions{how}, "
                              "the output back on the file's rig")
             else:
                 if full.skeleton.num_joints <= ckpt_skel.num_joints:     # not a larger rig: say how it differs

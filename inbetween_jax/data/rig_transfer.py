@@ -13,7 +13,8 @@ does not matter (the mb31 unit is 0.056444 m, :data:`MB_UNIT_CM`).  A hand witho
 The same 31-joint hierarchy also comes with CMU's ASF bone names (``hip``, ``lfemur``, ...: ``cmu_bvh/16_01.bvh``,
 ``16_02``, ``18_01_subjectA_414Group``, in the same unit); :data:`ASF31_TO_MB31` maps them, so those files take the
 same route.  Each known rig is a name map onto the MotionBuilder names (:data:`RIGS`); :func:`rig_profile`
-finds a file's.  :func:`transfer_back` puts a motion generated on the body back on the user's rig by the same
+finds a file's.  Any other humanoid rig is read by its joints' roles (:mod:`inbetween_jax.data.rig_roles`:
+``pelvis``, ``thigh_l``, ``UpperArm_L``, ...), :func:`rig_of`.  :func:`transfer_back` puts a motion generated on the body back on the user's rig by the same
 bones, with the user's own frames kept exactly where they are known.
 """
 from __future__ import annotations
@@ -23,7 +24,7 @@ import numpy as np
 from inbetween_jax.errors import UserError
 
 __all__ = ["MB_UNIT_CM", "MB31_JOINTS", "OPTIONAL_JOINTS", "ASF31_TO_MB31", "SPINE3_TO_MB31", "RIGS", "SWING",
-           "FRAMED", "rig_profile", "canonical_names", "on_31_joint_rig", "takes_rig_transfer", "transfer_rig",
+           "FRAMED", "rig_profile", "rig_of", "rig_label", "canonical_names", "on_31_joint_rig", "takes_rig_transfer", "transfer_rig",
            "transfer_back"]
 
 MB_UNIT_CM = 5.6444
@@ -71,16 +72,19 @@ SPINE3_TO_MB31 = {"Spine1": "Spine1 (middle)", "Spine2": "Spine1", "Neck": "Neck
 # are), cm per capture unit: only ratios of lengths are used, so it changes nothing but the last bits, which the
 # training captures keep as they were built)
 RIGS = {
-    "mb31": ("31-joint CMU", {}, MB_UNIT_CM),
-    "cmu-asf": ("31-joint CMU", ASF31_TO_MB31, MB_UNIT_CM),
-    "spine3": ("three-spine-joint (LaFAN1 / Mixamo names)", SPINE3_TO_MB31, 1.0),
+    "mb31": ("31-joint CMU rig", {}, MB_UNIT_CM),
+    "cmu-asf": ("31-joint CMU rig", ASF31_TO_MB31, MB_UNIT_CM),
+    "spine3": ("three-spine-joint rig (LaFAN1 / Mixamo names)", SPINE3_TO_MB31, 1.0),
 }
 
 
-def canonical_names(names, profile: str) -> list:
-    """A capture's joint ``names`` under the MotionBuilder names of :data:`RIGS` ``[profile]`` (a ``namespace:``
-    prefix dropped)."""
-    alias = RIGS[profile][1]
+ROLES_LABEL = "rig, read by its joints' roles (sides, hands, feet, spine, head),"
+
+
+def canonical_names(names, profile: str, alias: dict | None = None) -> list:
+    """A capture's joint ``names`` under the MotionBuilder names of :data:`RIGS` ``[profile]`` (or of ``alias``,
+    :func:`rig_of`'s), a ``namespace:`` prefix dropped."""
+    alias = RIGS[profile][1] if alias is None else alias
     return [alias.get(n.rsplit(":", 1)[-1], n.rsplit(":", 1)[-1]) for n in names]
 
 
@@ -89,6 +93,23 @@ def rig_profile(names) -> str | None:
     (:data:`OPTIONAL_JOINTS` may be missing), else None."""
     need = set(MB31_JOINTS) - set(OPTIONAL_JOINTS)
     return next((p for p in RIGS if need <= set(canonical_names(names, p))), None)
+
+
+def rig_of(skeleton) -> tuple | None:
+    """``(profile, alias)`` of a capture's skeleton: a rig of :data:`RIGS` by its names, else (``"roles"``) its
+    joints read by their roles from the names' words and the hierarchy
+    (:func:`~inbetween_jax.data.rig_roles.role_aliases`); None when neither finds every joint the transfer needs."""
+    profile = rig_profile(skeleton.names)
+    if profile is not None:
+        return profile, RIGS[profile][1]
+    from inbetween_jax.data.rig_roles import role_aliases
+    alias = role_aliases(skeleton)
+    return None if alias is None else ("roles", alias)
+
+
+def rig_label(profile: str) -> str:
+    """What a note calls a rig of :func:`rig_of`."""
+    return RIGS[profile][0] if profile in RIGS else ROLES_LABEL
 
 
 def on_31_joint_rig(names) -> bool:
@@ -130,13 +151,15 @@ def transfer_rig(capture, template, drop_tpose: bool = True):
     Raises UserError (one line, naming the file) when the capture is on none of them (the joints it lacks under
     the 31-joint names)."""
     from inbetween_jax.data.bvh import Motion
-    profile = rig_profile(capture.skeleton.names)
-    if profile is None:
+    found = rig_of(capture.skeleton)
+    if found is None:
         cnames = canonical_names(capture.skeleton.names, "mb31")
         missing = [n for n in MB31_JOINTS if n not in cnames and n not in OPTIONAL_JOINTS]
         raise UserError(f"{capture.source}: not a rig known to the bone-direction transfer (CMU's 31-joint, LaFAN1 "
-                        f"or Mixamo names; no {', '.join(missing[:4])})")
-    cnames = canonical_names(capture.skeleton.names, profile)
+                        f"or Mixamo names, nor hands, feet, spine and head found by joint roles; no "
+                        f"{', '.join(missing[:4])})")
+    profile, alias = found
+    cnames = canonical_names(capture.skeleton.names, profile, alias)
     from inbetween_jax.geometry.kinematics import forward_kinematics, inverse_kinematics
     from inbetween_jax.geometry.quaternion import (quat_between, quat_fix_sign_np, quat_from_matrix, quat_mul,
                                                    quat_rotate)
@@ -145,7 +168,7 @@ def transfer_rig(capture, template, drop_tpose: bool = True):
     idx = {n: i for i, n in enumerate(names)}
     q0 = np.asarray(capture.local_quats[0, 1:, 0], np.float64)
     first = 1 if drop_tpose and capture.num_frames > 1 and float(np.abs(1.0 - np.abs(q0)).max()) < TPOSE_TOL else 0
-    cap = capture.global_positions()[first:] * RIGS[profile][2]    # (T, Jc, 3): cm on the CMU rigs
+    cap = capture.global_positions()[first:] * (RIGS[profile][2] if profile in RIGS else 1.0)   # cm on CMU rigs
     cidx = {n: i for i, n in enumerate(cnames)}
     t_len, j_len = cap.shape[0], len(names)
     rest = forward_kinematics(np.tile([1.0, 0, 0, 0], (1, j_len, 1)), skel.offsets[None].astype(np.float64),
@@ -227,10 +250,11 @@ def transfer_back(generated, user, known=None):
                                                    quat_mul, quat_rotate)
     t_len, usk, bsk = generated.num_frames, user.skeleton, generated.skeleton
     known = known_frames(generated, user, known, "transfer_back")
-    profile = rig_profile(usk.names)
-    if profile is None:
+    found = rig_of(usk)
+    if found is None:
         raise UserError(f"{user.source}: not a rig known to the bone-direction transfer")
-    cidx = {n: i for i, n in enumerate(canonical_names(usk.names, profile))}
+    cnames = canonical_names(usk.names, *found)
+    cidx = {n: i for i, n in enumerate(cnames)}
     bidx = {n: i for i, n in enumerate(bsk.names)}
     ends = {p: np.asarray(o, np.float64) for p, o in bsk.end_sites}
     gq, gp = (np.asarray(x, np.float64) for x in forward_kinematics(
@@ -250,7 +274,7 @@ def transfer_back(generated, user, known=None):
     q, glob = uq.copy(), np.empty_like(uq)
     for j, parent in enumerate(usk.parents):
         pq = glob[:, parent] if parent >= 0 else np.tile([1.0, 0, 0, 0], (t_len, 1))
-        c = canonical_names([usk.names[j]], profile)[0]
+        c = cnames[j]
         framed, swung = INVERSE_FRAMED.get(c), INVERSE_SWING.get(c)
         if framed and have(framed[0][0], *framed[1][0]):
             (ub, up_pair), (side_c, side_t) = framed
