@@ -14,8 +14,8 @@ The same 31-joint hierarchy also comes with CMU's ASF bone names (``hip``, ``lfe
 ``16_02``, ``18_01_subjectA_414Group``, in the same unit); :data:`ASF31_TO_MB31` maps them, so those files take the
 same route.  Each known rig is a name map onto the MotionBuilder names (:data:`RIGS`); :func:`rig_profile`
 finds a file's.  Any other humanoid rig is read by its joints' roles (:mod:`inbetween_jax.data.rig_roles`:
-``pelvis``, ``thigh_l``, ``UpperArm_L``, ...), :func:`rig_of`.  :func:`transfer_back` puts a motion generated on the body back on the user's rig by the same
-bones, with the user's own frames kept exactly where they are known.
+``pelvis``, ``thigh_l``, ``UpperArm_L``, ...), :func:`rig_of`.  :func:`transfer_back` puts a motion generated on
+the body back on the user's rig by the same bones, with the user's own frames kept exactly where they are known.
 """
 from __future__ import annotations
 
@@ -24,8 +24,8 @@ import numpy as np
 from inbetween_jax.errors import UserError
 
 __all__ = ["MB_UNIT_CM", "MB31_JOINTS", "OPTIONAL_JOINTS", "ASF31_TO_MB31", "SPINE3_TO_MB31", "RIGS", "SWING",
-           "FRAMED", "rig_profile", "rig_of", "rig_label", "canonical_names", "on_31_joint_rig", "takes_rig_transfer", "transfer_rig",
-           "transfer_back"]
+           "FRAMED", "rig_profile", "rig_of", "rig_label", "canonical_names", "on_31_joint_rig", "takes_rig_transfer",
+           "transfer_rig", "transfer_back"]
 
 MB_UNIT_CM = 5.6444
 TPOSE_TOL = 0.03            # max |1 - |w|| of the non-root rotations for frame 0 to count as the rest T-pose
@@ -113,7 +113,8 @@ def rig_label(profile: str) -> str:
 
 
 def on_31_joint_rig(names) -> bool:
-    """Whether joint ``names`` are CMU's 31-joint rig (under either naming): the captures the ``cmu`` source trains on."""
+    """Whether joint ``names`` are CMU's 31-joint rig (under either naming): the captures the ``cmu`` source
+    trains on."""
     return rig_profile(names) in ("mb31", "cmu-asf")
 
 
@@ -142,7 +143,8 @@ def _frame(up, side):
 
 def transfer_rig(capture, template, drop_tpose: bool = True):
     """capture: a :class:`~inbetween_jax.data.bvh.Motion` on a rig of :data:`RIGS` (the 31-joint ``Hips``,
-    ``LeftUpLeg``, ..., its ASF names ``hip``, ``lfemur``, ..., or LaFAN1's ``Hips``, ``Spine2``, ...); template: one on the 43-joint body (``hip``, ``abdomen``, ...), or its
+    ``LeftUpLeg``, ..., its ASF names ``hip``, ``lfemur``, ..., or LaFAN1's ``Hips``, ``Spine2``, ...) or one
+    :func:`rig_of` reads by roles; template: one on the 43-joint body (``hip``, ``abdomen``, ...), or its
     :class:`~inbetween_jax.data.bvh.Skeleton`, or a subset of it holding every joint :data:`SWING` and
     :data:`FRAMED` set (a checkpoint's 21-joint body: bones without their child take the end site's direction).
     Returns the capture's frames, but a leading T-pose frame (kept with ``drop_tpose=False``, so frame numbers
