@@ -60,7 +60,6 @@ def role_aliases(skeleton) -> dict | None:
     names, parents = list(skeleton.names), list(skeleton.parents)
     ws = [words(n) for n in names]
     depth = [len(_chain(parents, j)) for j in range(len(names))]
-    children = {j: [k for k, p in enumerate(parents) if p == j] for j in range(len(names))}
 
     def shallowest(side, want, avoid):
         hits = [j for j in range(len(names)) if _side(ws[j]) == side and want & set(ws[j]) and not avoid & set(ws[j])]
@@ -70,13 +69,13 @@ def role_aliases(skeleton) -> dict | None:
     for side in ("Left", "Right"):
         hand = shallowest(side, {"hand", "wrist"}, _FINGER)
         foot = shallowest(side, {"foot", "ankle"}, _TOE)
-        if hand is None or foot is None or min(depth[hand], depth[foot]) < 4 or not children[foot]:
+        if hand is None or foot is None or min(depth[hand], depth[foot]) < 4 or not skeleton.children(foot):
             return None
         fingers = [k for k in range(len(names)) if hand in _chain(parents, k)[1:] and {"index", "middle", "mid"}
                    & set(ws[k])]
         role.update({f"{side}Hand": hand, f"{side}ForeArm": parents[hand], f"{side}Arm": parents[parents[hand]],
                      f"{side}Foot": foot, f"{side}Leg": parents[foot], f"{side}UpLeg": parents[parents[foot]],
-                     f"{side}ToeBase": children[foot][0]})
+                     f"{side}ToeBase": skeleton.children(foot)[0]})
         if fingers:
             role[f"{side}HandIndex1"] = min(fingers, key=lambda k: depth[k])
     hips = _meet(parents, role["LeftUpLeg"], role["RightUpLeg"])

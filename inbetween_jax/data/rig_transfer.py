@@ -134,6 +134,12 @@ def _unit(v):
     return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-9)
 
 
+def _leg_length(skel) -> float:
+    """Shin plus foot bone of the 43-joint body (or a checkpoint's subset of it): the length that scales the root."""
+    idx = {n: i for i, n in enumerate(skel.names)}
+    return float(np.linalg.norm(skel.offsets[idx["lShin"]]) + np.linalg.norm(skel.offsets[idx["lFoot"]]))
+
+
 def _frame(up, side):
     """(..., 3, 3) rotation matrices whose columns are up, side made orthogonal to it, and their cross."""
     e1 = _unit(up)
@@ -200,7 +206,7 @@ def transfer_rig(capture, template, drop_tpose: bool = True):
             glob[:, j] = pq                                                  # rest rotation
     local = inverse_kinematics(glob, np.zeros(glob.shape[:-1] + (3,)), parents)[0]     # rotations only
     local = quat_fix_sign_np(local / np.linalg.norm(local, axis=-1, keepdims=True), axis=0)
-    leg_t = np.linalg.norm(skel.offsets[idx["lShin"]]) + np.linalg.norm(skel.offsets[idx["lFoot"]])
+    leg_t = _leg_length(skel)
     leg_c = np.median(np.linalg.norm(cvec(("LeftUpLeg", "LeftLeg")), axis=-1)
                       + np.linalg.norm(cvec(("LeftLeg", "LeftFoot")), axis=-1))
     pos = np.broadcast_to(skel.offsets.astype(np.float64), (t_len, j_len, 3)).copy()
@@ -234,7 +240,7 @@ def _down(parents, offsets, q, a: int, b: int):
 
 def transfer_back(generated, user, known=None):
     """A motion generated on the body (the checkpoint's joints, as :func:`transfer_rig` put the user's file there)
-    back on the user's rig (``user``: a Motion on a rig of :data:`RIGS`, the same frame count, whose ``known``
+    back on the user's rig (``user``: a Motion on a rig :func:`rig_of` reads, the same frame count, whose ``known``
     frames hold the user's values; default: the first and the last frame).
 
     Each capture-rig bone of :data:`SWING` / :data:`FRAMED` is turned to point along the body bone it was read
@@ -303,7 +309,7 @@ def transfer_back(generated, user, known=None):
 
     leg_u = np.median(np.linalg.norm(chain("LeftUpLeg", "LeftLeg"), axis=-1)
                       + np.linalg.norm(chain("LeftLeg", "LeftFoot"), axis=-1))
-    leg_b = np.linalg.norm(bsk.offsets[bidx["lShin"]]) + np.linalg.norm(bsk.offsets[bidx["lFoot"]])
+    leg_b = _leg_length(bsk)
     sockets_b = 0.5 * (gp[:, bidx["rThigh"]] + gp[:, bidx["lThigh"]])
     sockets_u = 0.5 * sum(_down(usk.parents, up, q, 0, cidx[n]) for n in ("RightUpLeg", "LeftUpLeg"))
     root = sockets_b * (leg_u / leg_b) - quat_rotate(glob[:, 0], sockets_u)

@@ -187,14 +187,14 @@ def infill(args, run: Run) -> InfillResult:
         same_skeleton(km.skeleton, kpath, m.skeleton, path)
         if skel is None:
             check_skeleton(m.skeleton, path, skel, num_joints)
-        prep, factor = _on_run_rig(m, path, skel, run.fps, notes)
-        kprep = prep if kpath == path else _on_run_rig(km, kpath, skel, run.fps, [])[0]
+        prep = _on_run_rig(m, path, skel, run.fps, notes)
+        kprep = prep if kpath == path else _on_run_rig(km, kpath, skel, run.fps, [])
         own.append((start, kf))
         start, kf = to_frame(prep, start, "start"), to_frame(kprep, kf, "end")
         if start < n_in - 1:
             raise UserError(f"{opt} {path}: the model needs {n_in} frames of context (at {run.fps or m.fps:g} fps) up "
                             f"to the start frame; choose a later start frame")
-        chars.append((path, prep, start, kpath, kprep, kf, factor))
+        chars.append((path, prep, start, kpath, kprep, kf))
     pa, pb = chars[0][0], chars[1][0]
     ma, mb = chars[0][1].motion, chars[1][1].motion
     if abs(ma.frame_time - mb.frame_time) > 1e-6:
@@ -202,8 +202,8 @@ def infill(args, run: Run) -> InfillResult:
     if args.frames > cfg.model.max_frames:
         raise UserError(f"--frames {args.frames}: this interaction checkpoint rolls out at most "
                         f"{cfg.model.max_frames} frames (model.max_frames)")
-    context = np.stack([world_joint_features(p.motion)[s - n_in + 1:s + 1] for _, p, s, _, _, _, _ in chars])
-    keys = np.stack([world_joint_features(kp.motion.slice(kf, kf + 1))[0] for _, _, _, _, kp, kf, _ in chars])
+    context = np.stack([world_joint_features(p.motion)[s - n_in + 1:s + 1] for _, p, s, _, _, _ in chars])
+    keys = np.stack([world_joint_features(kp.motion.slice(kf, kf + 1))[0] for _, _, _, _, kp, kf in chars])
     trained = load(run)
     gated = {}
     feats = infill_features(trained, context, keys, args.frames, args.samples, args.seed, gated)
@@ -211,7 +211,7 @@ def infill(args, run: Run) -> InfillResult:
     samples = []
     for i, name in enumerate(_sample_names(args.samples)):
         motions = []
-        for c, (path, prep, s, _, kprep, kf, _) in enumerate(chars):
+        for c, (path, prep, s, _, kprep, kf) in enumerate(chars):
             motion = features_to_motion(feats[i, c], prep.motion, s, kprep.motion, kf)
             finite_or_fail(run.run_dir, motion.local_quats, motion.local_pos)
             motions.append(_on_user_rig(motion, prep, s, kprep, kf))
@@ -233,14 +233,14 @@ def infill(args, run: Run) -> InfillResult:
 
 
 def _on_run_rig(motion, path: str, skel, fps, notes: list):
-    """A user's file on the run's joints, frame rate and unit: ``(Prepared, factor)`` (run units per file unit).
+    """A user's file on the run's joints, frame rate and unit: a Prepared (``factor``: run units per file unit).
     Larger rigs are matched by joint name and another unit (e.g. the 1/128-scaled CMU salsa files) is detected
     from the leg length and converted (:func:`inbetween_jax.data.retarget.prepare`)."""
     from inbetween_jax.data.retarget import prepare
     prep = prepare(motion, path, skel, fps)
     if prep.note:
         notes.append(prep.note)
-    return prep, prep.factor
+    return prep
 
 
 def _on_user_rig(motion, prep, start: int, kprep, key_frame: int):
