@@ -1,19 +1,26 @@
-"""Other non-learned fills for the CAE's gaps inside a file, against the shipped base (the limited cubic Hermite),
-judged on the validation subjects and on the fit subjects' files: no network and no bank take part, so every file
-the training saw may score them.
+"""Other non-learned fills for the CAE's gaps inside a file, against the limited cubic Hermite (the network's
+pre-fill, and the CAE's base until 2026-12-07), judged on the validation subjects and on the fit subjects' files: no
+network and no bank take part, so every file the training saw may score them.
 
-Where the gate shuts (most gaps), the CAE's fill is its Hermite base.  Each variant here changes the base's body
-pose in the gap (the body-frame joint positions; the root keeps the Hermite root path, as ``model.root_bound``
-holds it):
+Where the gate shuts (most gaps), the CAE's fill is its base.  Each variant here changes the base's body pose in
+the gap (the body-frame joint positions; the root keeps the Hermite root path, as ``model.root_bound`` holds it):
 
-* ``limit L``: the Hermite's tangent limiter at L times the secant slope (the shipped 3; 0 is a smoothstep
+* ``limit L``: the Hermite's tangent limiter at L times the secant slope (3 in the pre-fill; 0 is a smoothstep
   between the edges, with no edge velocity);
 * ``pull B / W``: the pose pulled toward the mean of the known frames within W frames of each edge, by
   ``B sin(pi s)`` at gap phase s (0 at both edges, B mid-gap).  For motion that oscillates faster than the gap
-  (jumps in place, dance steps), the mean pose is the smallest-error guess for a phase nobody knows.
+  (jumps in place, dance steps), the mean pose is the smallest-error guess for a phase nobody knows;
+* ``damp k`` (``/ limit L``): the cubic with the edge tangents' departures from the secant fading as
+  ``exp(-k frames)`` from their edge (``hermite_fill(damping=k)``), unlimited (or limited at L): the fill leaves
+  and reaches the gap with the motion's own velocity and settles onto the straight line over a long gap;
+* ``edge fade k``: the limited Hermite plus the part of each edge tangent the limiter cut, fading as ``exp(-k
+  frames)`` from its edge (``hermite_fill(edge_fade=k)``; the shipped base since 2026-12-07, ``model.base_edge_fade
+  = 0.3``).  The limiter sets a tangent that opposes the secant to 0, so the limited fill leaves a joint still
+  while the capture moves it: a speed step at the keyframe.
 
 Printed: per set and (activity group, gap length), the mean error over the shipped base's, and the pooled mean /
-p90 / max, for every variant.
+p90 / max, for every variant; and how much a joint's step changes across the keyframes (the speed step where the
+fill meets the capture; the capture's own change beside it for reference).
 
     python experiments/cae_base_probe.py inbetween_jax/assets/weights/cae        # about 3 min
 """
@@ -38,14 +45,35 @@ p.add_argument("run_dir")
 p.add_argument("--limits", default="3,1.5,1,0.5,0")
 p.add_argument("--pulls", default="0.25,0.5,0.75,1.0")
 p.add_argument("--windows", default="8,15,30")
+p.add_argument("--dampings", default="", help="e.g. 0.05,0.1,0.2,0.3 (empty: none)")
+p.add_argument("--edge-fades", default="", help="limiter 3 with the cut tangent fading back near the edges")
+p.add_argument("--damp-limits", default="none", help="limiters with each damping (none = unlimited)")
 a = p.parse_args()
 model = load(load_run(a.run_dir))
 j = model.num_joints
-limits = [float(v) for v in a.limits.split(",")]
-pulls = [float(v) for v in a.pulls.split(",")]
-windows = [int(v) for v in a.windows.split(",")]
-names = [f"limit {v:g}" for v in limits] + [f"pull {b:g} / {w}" for b in pulls for w in windows]
+
+
+def floats(text):
+    return [float(v) for v in text.split(",") if v]
+
+
+limits, pulls, windows, dampings = floats(a.limits), floats(a.pulls), floats(a.windows), floats(a.dampings)
+fades = floats(a.edge_fades)
+damped = [(k, None if v == "none" else float(v)) for k in dampings for v in a.damp_limits.split(",")]
+names = ([f"limit {v:g}" for v in limits] + [f"pull {b:g} / {w:g}" for b in pulls for w in windows]
+         + [f"damp {k:g}" + ("" if lim is None else f" / limit {lim:g}") for k, lim in damped]
+         + [f"edge fade {k:g}" for k in fades])
 pos_rows = slice(0, 3 * j)                       # body-frame joint positions; the last three rows: root velocities
+
+
+
+def edge_jump(pos, lo, hi):
+    """Mean over joints and both edges of the change of a joint's step across a gap's keyframes, cm per frame:
+    ``|(p[lo] - p[lo-1]) - (p[lo-1] - p[lo-2])|`` and ``|(p[hi+1] - p[hi]) - (p[hi] - p[hi-1])|``."""
+    a = np.linalg.norm(pos[lo] - 2 * pos[lo - 1] + pos[lo - 2], axis=-1).mean()
+    b = np.linalg.norm(pos[hi + 1] - 2 * pos[hi] + pos[hi - 1], axis=-1).mean()
+    return 0.5 * float(a + b)
+
 
 recs = []
 for set_name, split in (("validation", "val-subjects"), ("fit", "fit-subjects")):
@@ -59,10 +87,13 @@ for set_name, split in (("validation", "val-subjects"), ("fit", "fit-subjects"))
                 feats = body_frame_features(m, known=fm > 0.5)          # nothing read from the gap
                 mask = frame_mask_image(fm, j)
                 xm = model.normalizer(feats.features).T.astype(np.float32) * mask
-                base = base_fill(model, xm[None], mask[None])[0]
+                base = base_fill(model, xm[None], mask[None], edge_fade=False)[0]     # the limited Hermite
 
                 def error(yy):
-                    return float(np.linalg.norm(gap_positions(model, yy, feats, fm)[lo:hi] - gp[lo:hi], axis=-1).mean())
+                    pos = gap_positions(model, yy, feats, fm)
+                    jumps.append(edge_jump(pos, lo, hi))
+                    return float(np.linalg.norm(pos[lo:hi] - gp[lo:hi], axis=-1).mean())
+                jumps = []
                 e0 = error(base)
                 s = np.arange(1, g + 1) / (g + 1)
                 ratios = []
@@ -71,33 +102,44 @@ for set_name, split in (("validation", "val-subjects"), ("fit", "fit-subjects"))
                     y[pos_rows] = np.asarray(hermite_fill(xm, mask, limit=lim), np.float32)[pos_rows]
                     ratios.append(error(y) / e0)
                 for b in pulls:
-                    for w in windows:
+                    for w in (int(v) for v in windows):
                         mean = 0.5 * (xm[pos_rows, max(lo - w, 0):lo].mean(1) + xm[pos_rows, hi:hi + w].mean(1))
                         y = base.copy()
                         y[pos_rows, lo:hi] += b * np.sin(np.pi * s)[None] * (mean[:, None] - base[pos_rows, lo:hi])
                         ratios.append(error(y) / e0)
-                recs.append((set_name, f"{group}/{g}", ratios))
+                for k, lim in damped:
+                    y = base.copy()
+                    y[pos_rows] = np.asarray(hermite_fill(xm, mask, limit=lim, damping=k), np.float32)[pos_rows]
+                    ratios.append(error(y) / e0)
+                for k in fades:
+                    y = base.copy()
+                    y[pos_rows] = np.asarray(hermite_fill(xm, mask, edge_fade=k), np.float32)[pos_rows]
+                    ratios.append(error(y) / e0)
+                recs.append((set_name, f"{group}/{g}", ratios, jumps[1:], edge_jump(gp, lo, hi)))
 
 print(f"{len(recs)} gaps; error over the shipped Hermite base's (mean per set and group)")
 print("| set | group | gaps | " + " | ".join(names) + " |")
 print("|---|---|---|" + "---|" * len(names))
 for set_name in ("validation", "fit"):
     by = collections.defaultdict(list)
-    for sn, grp, r in recs:
+    for sn, grp, r, *_ in recs:
         if sn == set_name:
             by[grp].append(r)
     for grp, v in sorted(by.items()):
         v = np.array(v)
         print(f"| {set_name} | {grp} | {len(v)} | " + " | ".join(f"{x:.3f}" for x in v.mean(0)) + " |")
-print("\n| variant | validation mean / p90 / max | fit mean / p90 / max | worst (set, group) mean |")
-print("|---|---|---|---|")
+print("\n| variant | validation mean / p90 / max | fit mean / p90 / max | worst (set, group) mean | "
+      "step change at the keyframes, cm per frame (the capture's) |")
+print("|---|---|---|---|---|")
 for i, name in enumerate(names):
     cells = []
     for set_name in ("validation", "fit"):
         r = np.array([x[2][i] for x in recs if x[0] == set_name])
         cells.append(f"{r.mean():.4f} / {np.percentile(r, 90):.3f} / {r.max():.3f}")
     groups = collections.defaultdict(list)
-    for sn, grp, r in recs:
+    for sn, grp, r, *_ in recs:
         groups[(sn, grp)].append(r[i])
     worst = max((np.mean(v), k) for k, v in groups.items())
-    print(f"| {name} | {cells[0]} | {cells[1]} | {worst[1][0]} {worst[1][1]} {worst[0]:.3f} |")
+    jump = np.mean([x[3][i] for x in recs])
+    print(f"| {name} | {cells[0]} | {cells[1]} | {worst[1][0]} {worst[1][1]} {worst[0]:.3f} | {jump:.3f} "
+          f"({np.mean([x[4] for x in recs]):.3f}) |")

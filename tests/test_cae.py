@@ -393,8 +393,11 @@ def _ref_tangents(row, known, p, q, limit):
     return out
 
 
-def _ref_hermite(x, mask, limit=3.0):
-    """scipy.interpolate.CubicHermiteSpline per row and gap (held at the ends, 0 for an empty row)."""
+def _ref_hermite(x, mask, limit=3.0, damping=0.0, edge_fade=0.0):
+    """scipy.interpolate.CubicHermiteSpline per row and gap (held at the ends, 0 for an empty row).  damping:
+    the line plus each tangent's departure from the secant as its own spline (zero at both ends), times
+    ``exp(-damping * frames from its edge)``; edge_fade: the limited spline plus the cut part of each tangent
+    (unlimited minus limited) the same way."""
     from scipy.interpolate import CubicHermiteSpline
     x, mask = np.asarray(x, np.float64), np.broadcast_to(mask, x.shape) > 0.5
     out = x.copy()
@@ -408,8 +411,17 @@ def _ref_hermite(x, mask, limit=3.0):
         for p, q in zip(k[:-1], k[1:]):
             if q - p > 1:
                 m0, m1 = _ref_tangents(flat[r], fm[r], p, q, limit)
+                t = np.arange(p + 1, q)
                 spline = CubicHermiteSpline([p, q], [flat[r, p], flat[r, q]], [m0, m1])
-                fo[r, p + 1:q] = spline(np.arange(p + 1, q))
+                fo[r, p + 1:q] = spline(t)
+                if damping or edge_fade:
+                    d = (flat[r, q] - flat[r, p]) / (q - p)
+                    raw0, raw1 = _ref_tangents(flat[r], fm[r], p, q, None)
+                    c0, c1 = (raw0 - d, raw1 - d) if damping else (raw0 - m0, raw1 - m1)
+                    k = damping or edge_fade
+                    lead = CubicHermiteSpline([p, q], [0.0, 0.0], [c0, 0.0])(t) * np.exp(-k * (t - p))
+                    trail = CubicHermiteSpline([p, q], [0.0, 0.0], [0.0, c1])(t) * np.exp(-k * (q - t))
+                    fo[r, p + 1:q] = (flat[r, p] + d * (t - p) if damping else fo[r, p + 1:q]) + lead + trail
     return out
 
 
@@ -437,6 +449,40 @@ def test_hermite_fill_matches_scipy(limit):
     # the limiter matters: the unlimited cubic overshoots where the limited one does not
     if limit is not None:
         assert not np.allclose(hermite_fill(x * m, m, limit=None), got, atol=1e-3)
+
+
+@pytest.mark.parametrize("kind", ["damping", "edge_fade"])
+def test_hermite_fill_fading_tangents_match_scipy(kind):
+    """hermite_fill(damping=k) (unlimited) and hermite_fill(edge_fade=k) (limited) = the scipy reference built from
+    separate splines; the limits k -> 0 / large give the plain cubic / the limited fill; and where the limiter
+    cuts a tangent, the edge-faded fill leaves the keyframe at the motion's own speed, the limited one does not."""
+    from inbetween_jax.baselines import hermite_fill
+    rng = np.random.default_rng(1)
+    t = np.arange(90)
+    x = np.stack([np.sin(t / 5.0 + ph) * a + 0.02 * t * c for ph, a, c in rng.normal(size=(16, 3))])[None]
+    x = x.astype(np.float32)
+    fm = cm.gap_frames(90, [(0, 3), (10, 40), (42, 43), (45, 60), (80, 90)])
+    m = np.broadcast_to(fm, x.shape).copy()
+    limit = None if kind == "damping" else 3.0
+    for k in (0.1, 0.5):
+        got = hermite_fill(x * m, m, limit=limit, **{kind: k})
+        np.testing.assert_allclose(got, _ref_hermite(x, m, limit, **{kind: k}), atol=3e-5, rtol=1e-5)
+        got_j = jax.jit(functools.partial(hermite_fill, limit=limit, **{kind: k}))(jnp.asarray(x * m), jnp.asarray(m))
+        np.testing.assert_allclose(np.asarray(got_j), got, atol=2e-5)
+        assert np.array_equal(got[m > 0.5], x[m > 0.5])
+    if kind == "damping":
+        np.testing.assert_allclose(hermite_fill(x * m, m, limit=None, damping=1e-9),
+                                   hermite_fill(x * m, m, limit=None), atol=2e-5)
+        return
+    np.testing.assert_allclose(hermite_fill(x * m, m, edge_fade=60.0), hermite_fill(x * m, m), atol=1e-6)
+    faded, limited = hermite_fill(x * m, m, edge_fade=0.3), hermite_fill(x * m, m)
+    last = (3 * x[0, :, 9] - 4 * x[0, :, 8] + x[0, :, 7]) / 2          # the motion's velocity into the gap at 10
+    chord = x[0, :, 40] - x[0, :, 9]
+    cut = last * chord < 0                                              # rows whose tangent the limiter zeroes
+    assert cut.sum() >= 3
+    step_f, step_l = faded[0, cut, 10] - x[0, cut, 9], limited[0, cut, 10] - x[0, cut, 9]
+    assert np.all(np.abs(step_f - last[cut]) < np.abs(step_l - last[cut]))
+    assert np.all(np.sign(step_f) == np.sign(last[cut]))
 
 
 def test_hermite_fill_straight_line_and_smooth_curve():

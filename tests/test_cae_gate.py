@@ -77,3 +77,37 @@ def test_knn_cap_takes_the_smaller_weight_and_is_read_from_the_shipped_gate(tmp_
     assert info[0][0]["gate_weight"] == 0.0
     np.testing.assert_allclose(shut[0, :, 40:70], base[0, :, 40:70], atol=1e-6)
     assert np.abs(kept[0, :, 40:70] - base[0, :, 40:70]).max() > 1e-3
+
+
+def test_shut_gap_takes_the_edge_faded_base_and_dropped_joints_the_pre_fill(cae_fast_walk):
+    """The shipped CAE's base (model.base_edge_fade > 0): a shut gap's body rows are the limited Hermite with the
+    cut edge tangents faded back in, its root rows the plain limited Hermite, and on real motion the base leaves
+    the keyframe closer to the motion's own velocity than the limited fill; joint dropout keeps the pre-fill."""
+    from inbetween_jax.baselines import hermite_fill
+    from inbetween_jax.models.cae.features import body_frame_features
+    from inbetween_jax.models.cae.gate import gate_clips
+    from inbetween_jax.models.cae.infer import load
+    from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
+    run, motion = cae_fast_walk
+    model = load(run)
+    k, j = model.cfg.model.base_edge_fade, model.num_joints
+    assert k > 0
+    a, b = 20, 50
+    fm = gap_frames(motion.num_frames, [(a, b)])
+    x = model.normalizer(body_frame_features(motion, known=fm > 0.5).features).T[None].astype(np.float32)
+    mask = frame_mask_image(fm, j)[None].copy()
+    mask[0, 0:3, 60:70] = 0.0                                 # one joint dropped for ten frames
+    model.knn_cap = (model.knn_cap[0], Gate(-2.0, -1.0))       # shut whatever the score
+    y = np.asarray(model.predict(x * mask, mask))
+    out, info = gate_clips(model, x * mask, mask, y)
+    limited, faded = hermite_fill(x * mask, mask), hermite_fill(x * mask, mask, edge_fade=k)
+    assert info[0][0]["gate_weight"] == 0.0
+    np.testing.assert_allclose(out[0, :3 * j, a:b], faded[0, :3 * j, a:b], atol=1e-6)
+    np.testing.assert_allclose(out[0, 3 * j:, a:b], limited[0, 3 * j:, a:b], atol=1e-6)
+    np.testing.assert_allclose(out[0, 0:3, 60:70], limited[0, 0:3, 60:70], atol=1e-6)
+    v = (3 * x[0, :3 * j, a - 1] - 4 * x[0, :3 * j, a - 2] + x[0, :3 * j, a - 3]) / 2   # velocity into the gap
+    cut = v * (x[0, :3 * j, b] - x[0, :3 * j, a - 1]) < 0       # rows whose tangent the limiter zeroes
+    assert cut.sum() >= 3
+    miss_f = np.abs(out[0, :3 * j, a] - x[0, :3 * j, a - 1] - v)[cut]
+    miss_l = np.abs(limited[0, :3 * j, a] - x[0, :3 * j, a - 1] - v)[cut]
+    assert miss_f.mean() < 0.5 * miss_l.mean()

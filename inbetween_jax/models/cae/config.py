@@ -93,6 +93,10 @@ class ModelConfig:
                                                 # training motion (ood.npz, models/ood.py; on in the shipped weights)
     knn_gate: bool = True                       # ... capped by the k-NN cap of ood.npz when it holds one (novel
                                                 # contexts: cae/gate.py)
+    base_edge_fade: float = 0.0                 # inference, model.fill=hermite: the gate's base for whole gaps gives
+                                                # back the edge velocity the tangent limiter cut, fading as
+                                                # exp(-this * frames) from each edge (hermite_fill(edge_fade=)); 0: the
+                                                # pre-fill itself
     root_bound: float = 0.0                     # inference: the root path stays within this many metres of the
                                                 # base's root path (0: unbounded, the paper)
     match_k: int = 0                            # inference, inside a file: blend in the k nearest training windows

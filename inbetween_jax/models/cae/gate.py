@@ -1,5 +1,5 @@
 """The CAE's out-of-distribution gate (:mod:`inbetween_jax.models.ood`): a score per gap and the blend of the
-network's fill toward its Hermite pre-fill as the score rises.
+network's fill toward its Hermite base (:func:`base_fill`) as the score rises.
 
 Context of a gap ``[a, b)`` in a normalised clip image (D, T): the feature columns (the CAE's own input space:
 body-frame joint positions and root velocities) of the known frames ``a - 1, a - 4, a - 8`` before it and ``b,
@@ -66,13 +66,22 @@ def training_contexts(bank, count: int = 4000, gaps=(15, 120), margin: int = 8, 
     return np.concatenate(out)
 
 
-def base_fill(model, x_norm, mask) -> np.ndarray:
-    """The run's non-learned pre-fill (``model.fill``: the limited cubic Hermite or the straight line) of the
-    masked clips (N, D, T)."""
+def base_fill(model, x_norm, mask, edge_fade: bool = True) -> np.ndarray:
+    """The run's non-learned fill (``model.fill``: the limited cubic Hermite or the straight line) of the masked
+    clips (N, D, T): the base the gate blends toward.  With ``model.base_edge_fade`` k > 0 (and ``edge_fade``) the
+    body rows (the joint positions, not the root's velocities) of a Hermite fill give back the edge velocity the
+    tangent limiter cut, fading as ``exp(-k frames)`` from each edge (``hermite_fill(edge_fade=k)``): the fill
+    leaves and reaches each keyframe at the motion's own speed.  ``edge_fade=False``: the network's pre-fill."""
     from inbetween_jax.baselines import hermite_fill, linear_fill
-    f = hermite_fill if model.cfg.model.fill == "hermite" else linear_fill
-    x = np.asarray(x_norm, np.float32)
-    return np.asarray(f(x * mask, mask), np.float32)
+    x = np.asarray(x_norm, np.float32) * mask
+    if model.cfg.model.fill != "hermite":
+        return np.asarray(linear_fill(x, mask), np.float32)
+    out = np.asarray(hermite_fill(x, mask), np.float32)
+    fade = float(getattr(model.cfg.model, "base_edge_fade", 0.0))
+    if edge_fade and fade > 0:
+        rows = slice(0, 3 * model.num_joints)
+        out[..., rows, :] = np.asarray(hermite_fill(x, mask, edge_fade=fade), np.float32)[..., rows, :]
+    return out
 
 
 def gate_clips(model, x_masked, mask, y):
@@ -91,7 +100,8 @@ def gate_clips(model, x_masked, mask, y):
     frames = (m.max(axis=1) > 0.5).astype(np.float32)                       # (N, T) 1 = some known
     base = base_fill(model, x_masked, m)
     partial = (m < 0.5) & (frames[:, None, :] > 0.5) & (m.max(axis=2, keepdims=True) > 0.5)
-    out, info = np.where(partial, base, np.asarray(y, np.float32)).astype(np.float32), []
+    pre = base_fill(model, x_masked, m, edge_fade=False) if partial.any() else base
+    out, info = np.where(partial, pre, np.asarray(y, np.float32)).astype(np.float32), []
     for i in range(len(out)):
         rows = []
         for a, b in gap_ranges(frames[i]):
