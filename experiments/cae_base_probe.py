@@ -16,7 +16,10 @@ the gap (the body-frame joint positions; the root keeps the Hermite root path, a
 * ``edge fade k``: the limited Hermite plus the part of each edge tangent the limiter cut, fading as ``exp(-k
   frames)`` from its edge (``hermite_fill(edge_fade=k)``; the shipped base since 2026-12-07, ``model.base_edge_fade
   = 0.3``).  The limiter sets a tangent that opposes the secant to 0, so the limited fill leaves a joint still
-  while the capture moves it: a speed step at the keyframe.
+  while the capture moves it: a speed step at the keyframe;
+* ``... + root fade k``: the body as ``edge fade`` (``--root-body-fade``, 0.3 as shipped) and the root's floor path,
+  which ``model.root_bound`` holds to the limited Hermite of the known root positions, on that Hermite edge-faded
+  too (``model.root_edge_fade``, shipped 0.4 since 2026-12-07).
 
 Printed: per set and (activity group, gap length), the mean error over the shipped base's, and the pooled mean /
 p90 / max, for every variant; and how much a joint's step changes across the keyframes (the speed step where the
@@ -26,6 +29,8 @@ fill meets the capture; the capture's own change beside it for reference).
 """
 import argparse
 import collections
+import copy
+import dataclasses
 
 import numpy as np
 
@@ -47,9 +52,12 @@ p.add_argument("--pulls", default="0.25,0.5,0.75,1.0")
 p.add_argument("--windows", default="8,15,30")
 p.add_argument("--dampings", default="", help="e.g. 0.05,0.1,0.2,0.3 (empty: none)")
 p.add_argument("--edge-fades", default="", help="limiter 3 with the cut tangent fading back near the edges")
+p.add_argument("--root-fades", default="", help="the root path edge-faded as well (e.g. 0.3,0.4,0.5)")
+p.add_argument("--root-body-fade", type=float, default=0.3, help="the body's edge fade with --root-fades")
 p.add_argument("--damp-limits", default="none", help="limiters with each damping (none = unlimited)")
 a = p.parse_args()
 model = load(load_run(a.run_dir))
+model.cfg = dataclasses.replace(model.cfg, model=dataclasses.replace(model.cfg.model, root_edge_fade=0.0))
 j = model.num_joints
 
 
@@ -58,11 +66,22 @@ def floats(text):
 
 
 limits, pulls, windows, dampings = floats(a.limits), floats(a.pulls), floats(a.windows), floats(a.dampings)
-fades = floats(a.edge_fades)
+fades, root_fades = floats(a.edge_fades), floats(a.root_fades)
+
+
+def with_root_fade(k):
+    """The model with its root path's base edge-faded by ``k``."""
+    out = copy.copy(model)
+    out.cfg = dataclasses.replace(model.cfg, model=dataclasses.replace(model.cfg.model, root_edge_fade=k))
+    return out
+
+
+root_models = [with_root_fade(k) for k in root_fades]
 damped = [(k, None if v == "none" else float(v)) for k in dampings for v in a.damp_limits.split(",")]
 names = ([f"limit {v:g}" for v in limits] + [f"pull {b:g} / {w:g}" for b in pulls for w in windows]
          + [f"damp {k:g}" + ("" if lim is None else f" / limit {lim:g}") for k, lim in damped]
-         + [f"edge fade {k:g}" for k in fades])
+         + [f"edge fade {k:g}" for k in fades]
+         + [f"edge fade {a.root_body_fade:g} + root fade {k:g}" for k in root_fades])
 pos_rows = slice(0, 3 * j)                       # body-frame joint positions; the last three rows: root velocities
 
 
@@ -89,8 +108,8 @@ for set_name, split in (("validation", "val-subjects"), ("fit", "fit-subjects"))
                 xm = model.normalizer(feats.features).T.astype(np.float32) * mask
                 base = base_fill(model, xm[None], mask[None], edge_fade=False)[0]     # the limited Hermite
 
-                def error(yy):
-                    pos = gap_positions(model, yy, feats, fm)
+                def error(yy, model_=model):
+                    pos = gap_positions(model_, yy, feats, fm)
                     jumps.append(edge_jump(pos, lo, hi))
                     return float(np.linalg.norm(pos[lo:hi] - gp[lo:hi], axis=-1).mean())
                 jumps = []
@@ -115,6 +134,10 @@ for set_name, split in (("validation", "val-subjects"), ("fit", "fit-subjects"))
                     y = base.copy()
                     y[pos_rows] = np.asarray(hermite_fill(xm, mask, edge_fade=k), np.float32)[pos_rows]
                     ratios.append(error(y) / e0)
+                if root_models:
+                    y = base.copy()
+                    y[pos_rows] = np.asarray(hermite_fill(xm, mask, edge_fade=a.root_body_fade), np.float32)[pos_rows]
+                    ratios += [error(y, m_) / e0 for m_ in root_models]
                 recs.append((set_name, f"{group}/{g}", ratios, jumps[1:], edge_jump(gp, lo, hi)))
 
 print(f"{len(recs)} gaps; error over the shipped Hermite base's (mean per set and group)")

@@ -38,7 +38,7 @@ INFERENCE_SWITCHES = {"interaction": ("model.refiner", "model.latent_scale", "mo
                                 "model.context_max_turn", "model.context_max_step", "model.timing_spread",
                                 "model.timing_parts", "model.timing_spread_in_clip", "model.timing_spread_fallback"),
                       "cae": ("model.mirror_average", "model.ood_gate", "model.base_edge_fade", "model.root_bound",
-                              "model.match_k",
+                              "model.root_edge_fade", "model.match_k",
                               "model.match_lo", "model.match_hi", "model.match_disp", "model.match_departure",
                               "model.match_speed_scale")}
 # Per model: the key-path prefixes of the train state that ``infer.load`` / inference use.

@@ -258,9 +258,19 @@ SUFFIX_NAMES = {"Hips": "Hips", "Spine": "Spine", "Spine1": "Chest", "Spine2": "
                     ("Shoulder", "Shoulder"), ("Arm", "UpperArm"), ("ForeArm", "LowerArm"), ("Hand", "Hand"),
                     ("UpLeg", "UpperLeg"), ("Leg", "LowerLeg"), ("Foot", "Foot"), ("Toe", "Toes"))}}
 
+# SMPL's joint names, as BVH exports of AMASS / SMPL fits write them (the ankle is the foot joint, SMPL's "Foot" the
+# toe, the wrist the hand); the same with the "m_avg_" prefix of SMPL's own rig files, and SMPL-X's lower case
+SMPL_NAMES = {"Hips": "Pelvis", "Spine": "Spine1", "Spine1": "Spine2", "Spine2": "Spine3", "Neck": "Neck",
+              "Head": "Head", **{f"{side}{a}": f"{side[0]}_{b}" for side in ("Left", "Right") for a, b in (
+                  ("Shoulder", "Collar"), ("Arm", "Shoulder"), ("ForeArm", "Elbow"), ("Hand", "Wrist"),
+                  ("UpLeg", "Hip"), ("Leg", "Knee"), ("Foot", "Ankle"), ("Toe", "Foot"))}}
+SMPL_AVG_NAMES = {k: f"m_avg_{v}" for k, v in SMPL_NAMES.items()}
+SMPLX_NAMES = {k: v.lower().replace("l_", "left_").replace("r_", "right_") for k, v in SMPL_NAMES.items()}
+
 
 @pytest.mark.skipif(not os.path.isfile(LAFAN1_WALK), reason="lafan1/ not found beside the repository")
-@pytest.mark.parametrize("rename", [UE_NAMES, SUFFIX_NAMES], ids=["unreal", "suffix"])
+@pytest.mark.parametrize("rename", [UE_NAMES, SUFFIX_NAMES, SMPL_NAMES, SMPL_AVG_NAMES, SMPLX_NAMES],
+                         ids=["unreal", "suffix", "smpl", "smpl-m-avg", "smplx"])
 def test_a_rig_outside_the_table_is_read_by_its_joints_roles(rename):
     """The same LaFAN1 capture under other names: :func:`rig_of` reads the roles from words and hierarchy (sides,
     hands, feet, where the arms' and legs' chains meet), and the transfer there and back is the table's, exactly."""

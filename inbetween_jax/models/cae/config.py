@@ -99,6 +99,9 @@ class ModelConfig:
                                                 # pre-fill itself
     root_bound: float = 0.0                     # inference: the root path stays within this many metres of the
                                                 # base's root path (0: unbounded, the paper)
+    root_edge_fade: float = 0.0                 # inference, with root_bound: that base root path gives back the edge
+                                                # velocity its tangent limiter cut, fading as exp(-this * frames)
+                                                # (features.root_base_path); 0: the limited Hermite
     match_k: int = 0                            # inference, inside a file: blend in the k nearest training windows
                                                 # of each gap's context (bank.npz, models/cae/bank.py); 0: off
     match_lo: float = 0.0                       # match distance at and below which the matched fill is kept whole

@@ -193,7 +193,7 @@ def body_positions(x_norm, normalizer: Normalizer, num_joints: int) -> np.ndarra
 
 
 def to_global(y_norm, normalizer: Normalizer, num_joints: int, ref0, yaw0: float, known_feats=None, frame_mask=None,
-              root_bound: float = 0.0, known_track=None):
+              root_bound: float = 0.0, known_track=None, root_edge_fade: float = 0.0):
     """One clip (D, T) normalised -> (T, J, 3) global positions.
 
     Without ``known_feats``: the predicted root velocities are integrated from ``(ref0, yaw0)`` at frame 0.
@@ -202,7 +202,8 @@ def to_global(y_norm, normalizer: Normalizer, num_joints: int, ref0, yaw0: float
     it, with the end mismatch spread linearly over the gap (so the path meets the next known frame).
     ``root_bound`` > 0 (data units; with ``known_feats``): the root's floor path in the gaps stays within that
     distance of :func:`root_base_path`, the limited cubic Hermite through the known root positions (a deviation
-    d becomes ``d min(1, root_bound / |d|)``), so an integrated path cannot run ahead of the motion and back.
+    d becomes ``d min(1, root_bound / |d|)``), so an integrated path cannot run ahead of the motion and back;
+    ``root_edge_fade``: that base path's edge tangents, as :func:`root_base_path` says.
     known_track: optional ``(ref (T, 2), yaw (T,))``, the known frames' root path and unwrapped facing
     (``MotionFeatures.ref`` / ``.yaw``), used instead of integrating ``known_feats``' velocities (whose first
     velocity after a gap no longer reads the gap when the features were built with ``known``).
@@ -236,29 +237,39 @@ def to_global(y_norm, normalizer: Normalizer, num_joints: int, ref0, yaw0: float
         ref[a:b] = seg_ref[off:off + n] + w * d_ref
         yaw[a:b] = seg_yaw[off:off + n] + w[:, 0] * d_yaw
     if root_bound > 0:
-        ref = bound_root_path(ref, frame_mask, root_bound)
+        ref = bound_root_path(ref, frame_mask, root_bound, root_edge_fade)
     local, _ = split_features(y, num_joints)
     xz = rotate_about_up(local[..., [0, 2]], yaw[:, None])
     return np.stack([xz[..., 0] + ref[:, None, 0], local[..., 1], xz[..., 1] + ref[:, None, 1]], axis=-1)
 
 
-def root_base_path(ref, frame_mask) -> np.ndarray:
+def root_base_path(ref, frame_mask, edge_fade: float = 0.0) -> np.ndarray:
     """(T, 2) floor path with every gap (``frame_mask`` (T,) 0) bridged by the limited cubic Hermite of the known
     positions (:func:`inbetween_jax.baselines.hermite_fill`: velocities matched at the gap's edges, no overshoot
-    past the secant per axis; a straight line stays straight)."""
+    past the secant per axis; a straight line stays straight).  ``edge_fade`` k > 0: the part of an edge velocity
+    the limiter cut fades back in as ``exp(-k frames)`` (``hermite_fill(edge_fade=k)``), so the root leaves and
+    reaches each keyframe at the capture's speed."""
     from inbetween_jax.baselines.hermite_fill import hermite_fill
     ref = np.asarray(ref, np.float64)
-    return np.asarray(hermite_fill(ref.T, np.asarray(frame_mask)[None] > 0.5), np.float64).T
+    known = np.asarray(frame_mask)[None] > 0.5
+    return np.asarray(hermite_fill(ref.T, known, edge_fade=edge_fade), np.float64).T
 
 
-def bound_root_path(ref, frame_mask, bound: float) -> np.ndarray:
+def bound_root_path(ref, frame_mask, bound: float, edge_fade: float = 0.0) -> np.ndarray:
     """(T, 2) floor path whose gap frames are pulled to within ``bound`` of :func:`root_base_path`."""
     ref = np.asarray(ref, np.float64)
-    base = root_base_path(ref, frame_mask)
+    base = root_base_path(ref, frame_mask, edge_fade)
     dev = ref - base
     scale = np.minimum(1.0, bound / np.maximum(np.linalg.norm(dev, axis=-1, keepdims=True), 1e-12))
     gap = (np.asarray(frame_mask) < 0.5)[:, None]
     return np.where(gap, base + dev * scale, ref)
+
+
+def root_path_options(model_cfg) -> dict:
+    """``to_global``'s root options of a run's ``cfg.model``: ``root_bound`` (metres in the config, data units
+    here) and ``root_edge_fade``."""
+    return {"root_bound": float(getattr(model_cfg, "root_bound", 0.0)) * 100.0,
+            "root_edge_fade": float(getattr(model_cfg, "root_edge_fade", 0.0))}
 
 
 @dataclasses.dataclass

@@ -32,11 +32,10 @@ def gap_positions(model, y_norm, feats, frame_mask) -> np.ndarray:
     """(T, J, 3) global joint positions of one filled clip ``y_norm`` (D, T, normalised) as ``infill`` puts them
     back: the known frames on their own root track (``feats``: the file's
     :class:`~inbetween_jax.models.cae.features.MotionFeatures`), each gap's root held to the run's
-    ``model.root_bound`` around the Hermite root path."""
-    from inbetween_jax.models.cae.features import to_global
-    bound = float(getattr(model.cfg.model, "root_bound", 0.0)) * 100.0
+    ``model.root_bound`` around the Hermite root path (``model.root_edge_fade``: its edge tangents)."""
+    from inbetween_jax.models.cae.features import root_path_options, to_global
     return to_global(y_norm, model.normalizer, model.num_joints, feats.ref0, feats.yaw0, known_feats=feats.features,
-                     frame_mask=frame_mask, root_bound=bound, known_track=(feats.ref, feats.yaw))
+                     frame_mask=frame_mask, known_track=(feats.ref, feats.yaw), **root_path_options(model.cfg.model))
 
 
 def gap_records(model, motions, seconds=SECONDS, limit: int | None = None) -> list:

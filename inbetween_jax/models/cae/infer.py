@@ -28,7 +28,7 @@ from inbetween_jax.models.cae.bank import (BANK_FILE, MARGIN, MatchBank, departu
                                            match_gap, match_weight, speed_beside)
 from inbetween_jax.models.cae.config import Config
 from inbetween_jax.models.cae.features import (body_frame_features, body_positions, mirror_clips, mirror_rows,
-                                               num_features, to_global)
+                                               num_features, root_path_options, to_global)
 from inbetween_jax.models.cae.masks import (add_position_noise, dropout_mask, frame_mask_image, gap_frames,
                                             gap_ranges, joints_mask)
 from inbetween_jax.models.spec import InfillResult
@@ -177,9 +177,9 @@ def process_motion(model, motion, gaps=(), noise: float = 0.0, dropout: float = 
         y, gated = y[0], info[0]
     if gaps and getattr(model, "match", None) is not None and match_enabled(model.cfg.model):
         gated = _matched(model, y, x_in * mask, feats, fm, gated)
-    bound = float(getattr(model.cfg.model, "root_bound", 0.0)) * 100.0 if hasattr(model, "cfg") else 0.0
+    roots = root_path_options(model.cfg.model) if gaps and hasattr(model, "cfg") else {}
     pos = to_global(y, model.normalizer, j, feats.ref0, feats.yaw0, known_feats=feats.features, frame_mask=fm,
-                    root_bound=bound if gaps else 0.0, known_track=(feats.ref, feats.yaw))
+                    known_track=(feats.ref, feats.yaw), **roots)
     scored = (fm < 0.5) if gaps else np.ones(t_len, bool)     # gaps: their frames; otherwise every frame
     err = mpjpe(body_positions(y, model.normalizer, j), body_positions(x, model.normalizer, j),
                 mask=scored, root_relative=False)
