@@ -39,7 +39,7 @@ from inbetween_jax.data.activities import activity_group
 from inbetween_jax.geometry import forward_kinematics
 from inbetween_jax.models.cae.features import body_frame_features
 from inbetween_jax.models.cae.gate import base_fill
-from inbetween_jax.models.cae.in_file import gap_positions, gap_starts
+from inbetween_jax.models.cae.in_file import gap_positions, gap_starts, keyframe_step_change
 from inbetween_jax.models.cae.infer import load
 from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
 from inbetween_jax.baselines import hermite_fill
@@ -86,14 +86,6 @@ pos_rows = slice(0, 3 * j)                       # body-frame joint positions; t
 
 
 
-def edge_jump(pos, lo, hi):
-    """Mean over joints and both edges of the change of a joint's step across a gap's keyframes, cm per frame:
-    ``|(p[lo] - p[lo-1]) - (p[lo-1] - p[lo-2])|`` and ``|(p[hi+1] - p[hi]) - (p[hi] - p[hi-1])|``."""
-    a = np.linalg.norm(pos[lo] - 2 * pos[lo - 1] + pos[lo - 2], axis=-1).mean()
-    b = np.linalg.norm(pos[hi + 1] - 2 * pos[hi] + pos[hi - 1], axis=-1).mean()
-    return 0.5 * float(a + b)
-
-
 recs = []
 for set_name, split in (("validation", "val-subjects"), ("fit", "fit-subjects")):
     for m in load_motions("cmu", split):
@@ -110,7 +102,7 @@ for set_name, split in (("validation", "val-subjects"), ("fit", "fit-subjects"))
 
                 def error(yy, model_=model):
                     pos = gap_positions(model_, yy, feats, fm)
-                    jumps.append(edge_jump(pos, lo, hi))
+                    jumps.append(keyframe_step_change(pos, lo, hi))
                     return float(np.linalg.norm(pos[lo:hi] - gp[lo:hi], axis=-1).mean())
                 jumps = []
                 e0 = error(base)
@@ -138,7 +130,7 @@ for set_name, split in (("validation", "val-subjects"), ("fit", "fit-subjects"))
                     y = base.copy()
                     y[pos_rows] = np.asarray(hermite_fill(xm, mask, edge_fade=a.root_body_fade), np.float32)[pos_rows]
                     ratios += [error(y, m_) / e0 for m_ in root_models]
-                recs.append((set_name, f"{group}/{g}", ratios, jumps[1:], edge_jump(gp, lo, hi)))
+                recs.append((set_name, f"{group}/{g}", ratios, jumps[1:], keyframe_step_change(gp, lo, hi)))
 
 print(f"{len(recs)} gaps; error over the shipped Hermite base's (mean per set and group)")
 print("| set | group | gaps | " + " | ".join(names) + " |")

@@ -3,7 +3,9 @@ bound as the run's config and ``--set`` say): per activity group and length, the
 Hermite fill and over straight lines (:func:`inbetween_jax.models.cae.in_file.gap_records`, the bench's in-file
 rows), on a split of the ``cmu`` source (default: the validation subjects) or on BVH files of any rig and rate, matched
 to the run's joints and resampled as ``infill`` does (``--files``: e.g. the salsa dancers of ``cmu_pairs``, motion
-no CAE was trained on).
+no CAE was trained on).  Also printed: how much the joints' steps change across the keyframes (the fill's against
+the capture's; a fill that stops a moving joint at the keyframe, or leaves it too fast, shows a larger change), by
+what filled the gap.
 
     python experiments/cae_in_file.py RUN_DIR [--split val-subjects | --files F.bvh ...] [--set KEY=VALUE ...]
                                       [--json OUT]
@@ -16,6 +18,8 @@ import argparse
 import dataclasses
 import json
 import time
+
+import numpy as np
 
 from inbetween_jax.data import load_motions, read_bvh
 from inbetween_jax.data.retarget import prepare
@@ -48,6 +52,15 @@ for _, base in BASES:
     print(worst_case_markdown([r for r in rows if r["base"] == base], f"{a.run_dir} {' '.join(a.set)}: {split}, "
                                                                        "inside a file"))
     print()
+print("How much the joints' steps change across the keyframes, cm per frame: the fill's (the capture's), by what "
+      "filled the gap")
+for kind, keep in (("matched training motion", lambda r: r["matched"]),
+                   ("the network (gate weight > 0.5)", lambda r: not r["matched"] and r.get("gate_weight", 0) > 0.5),
+                   ("the base", lambda r: not r["matched"] and r.get("gate_weight", 0) <= 0.5)):
+    sel = [r for r in records if keep(r)]
+    if sel:
+        print(f"- {kind}: {np.mean([r['step_change'] for r in sel]):.3f} "
+              f"({np.mean([r['step_change_capture'] for r in sel]):.3f}), {len(sel)} gaps")
 print(f"{len(records)} gaps, {matched} matched, {time.time() - t0:.0f} s")
 if a.json:
     with open(a.json, "w") as f:

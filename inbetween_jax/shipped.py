@@ -37,10 +37,9 @@ INFERENCE_SWITCHES = {"interaction": ("model.refiner", "model.latent_scale", "mo
                                 "model.bank_sample_gated", "model.context_base", "model.context_damping",
                                 "model.context_max_turn", "model.context_max_step", "model.timing_spread",
                                 "model.timing_parts", "model.timing_spread_in_clip", "model.timing_spread_fallback"),
-                      "cae": ("model.mirror_average", "model.ood_gate", "model.base_edge_fade", "model.root_bound",
-                              "model.root_edge_fade", "model.match_k",
-                              "model.match_lo", "model.match_hi", "model.match_disp", "model.match_departure",
-                              "model.match_speed_scale")}
+                      "cae": ("model.mirror_average", "model.ood_gate", "model.net_edge_fade", "model.base_edge_fade",
+                              "model.root_bound", "model.root_edge_fade", "model.match_k", "model.match_lo",
+                              "model.match_hi", "model.match_disp", "model.match_departure", "model.match_speed_scale")}
 # Per model: the key-path prefixes of the train state that ``infer.load`` / inference use.
 KEEP = {"scvae": ("params", "stats"),                # generators + normalisation (disc, opt_g, opt_d dropped)
         "cae": ("params",),                          # opt_state dropped

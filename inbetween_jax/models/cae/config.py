@@ -93,6 +93,8 @@ class ModelConfig:
                                                 # training motion (ood.npz, models/ood.py; on in the shipped weights)
     knn_gate: bool = True                       # ... capped by the k-NN cap of ood.npz when it holds one (novel
                                                 # contexts: cae/gate.py)
+    net_edge_fade: float = 0.0                  # inference: the network's fill meets each keyframe at the capture's
+                                                # speed, the difference fading as exp(-this * frames) (edges.py)
     base_edge_fade: float = 0.0                 # inference, model.fill=hermite: the gate's base for whole gaps gives
                                                 # back the edge velocity the tangent limiter cut, fading as
                                                 # exp(-this * frames) from each edge (hermite_fill(edge_fade=)); 0: the

@@ -6,6 +6,7 @@ gap.  The bench writes these as ``per_window`` rows of its own split names (``"t
 ``"validation, inside a file"``).
 
     gap_records(model, motions, seconds=(1, 2)) -> list of {"name", "frames", "ratio", "x_straight", "matched",
+                                                              "step_change", "step_change_capture",
                                                               "ood_score", "gate_weight"}
 
 The experiments that score the CAE's gaps inside files (``experiments/cae_*.py``) take the same gaps
@@ -15,7 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["gap_records", "gap_starts", "gap_positions", "base_rows", "SECONDS", "MARGIN_FRAMES", "BASES"]
+__all__ = ["gap_records", "gap_starts", "gap_positions", "keyframe_step_change", "base_rows", "SECONDS",
+           "MARGIN_FRAMES", "BASES"]
 
 SECONDS = (1, 2)          # gap lengths, as the validation choice of the match (experiments/cae_motion_match.py)
 MARGIN_FRAMES = 10        # known frames kept before the first gap and after the last
@@ -36,6 +38,16 @@ def gap_positions(model, y_norm, feats, frame_mask) -> np.ndarray:
     from inbetween_jax.models.cae.features import root_path_options, to_global
     return to_global(y_norm, model.normalizer, model.num_joints, feats.ref0, feats.yaw0, known_feats=feats.features,
                      frame_mask=frame_mask, known_track=(feats.ref, feats.yaw), **root_path_options(model.cfg.model))
+
+
+def keyframe_step_change(pos, lo: int, hi: int) -> float:
+    """How much the joints' steps change across the keyframes of the gap ``[lo, hi)`` in global positions pos
+    (T, J, 3), in its units per frame: ``|(p[lo] - p[lo-1]) - (p[lo-1] - p[lo-2])|`` and the same at ``hi``, mean
+    over joints and both edges.  A fill that stops a moving joint at the keyframe shows a large change; the
+    capture's own change there is the reference (needs two frames beyond each edge)."""
+    a = np.linalg.norm(pos[lo] - 2 * pos[lo - 1] + pos[lo - 2], axis=-1).mean()
+    b = np.linalg.norm(pos[hi + 1] - 2 * pos[hi] + pos[hi - 1], axis=-1).mean()
+    return 0.5 * float(a + b)
 
 
 def gap_records(model, motions, seconds=SECONDS, limit: int | None = None) -> list:
@@ -73,6 +85,8 @@ def gap_records(model, motions, seconds=SECONDS, limit: int | None = None) -> li
                             "x_straight": e / max(float(np.linalg.norm(straight - gp[lo:lo + g], axis=-1).mean()),
                                                   1e-9),
                             "matched": any(r.get("match_weight", 0.0) > 0.5 for r in res["gaps_ood"]),
+                            "step_change": keyframe_step_change(res["positions"], lo, lo + g),
+                            "step_change_capture": keyframe_step_change(gp, lo, lo + g),
                             **{k: float(res["gaps_ood"][0][k]) for k in ("ood_score", "gate_weight")
                                if res["gaps_ood"] and k in res["gaps_ood"][0]}})
     return out

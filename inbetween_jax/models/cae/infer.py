@@ -27,6 +27,7 @@ from inbetween_jax.models.cae import model as cae_model
 from inbetween_jax.models.cae.bank import (BANK_FILE, MARGIN, MatchBank, departure, gate_distance, match_enabled,
                                            match_gap, match_weight, speed_beside)
 from inbetween_jax.models.cae.config import Config
+from inbetween_jax.models.cae.edges import match_edge_velocity
 from inbetween_jax.models.cae.features import (body_frame_features, body_positions, mirror_clips, mirror_rows,
                                                num_features, root_path_options, to_global)
 from inbetween_jax.models.cae.masks import (add_position_noise, dropout_mask, frame_mask_image, gap_frames,
@@ -110,8 +111,10 @@ def fill(model, x_norm, mask, keep_known: bool = False, chunk: int = 64, gate: b
 
     ``model`` is a :class:`TrainedCAE` (or any object with ``predict(x, mask)``).  A run with
     ``model.paste_known`` returns the known entries unchanged whatever ``keep_known`` says.  With
-    ``model.ood_gate`` (and ``gate``) every gap -- a run of frames with nothing known -- is moved toward the
-    pre-fill by the out-of-distribution gate (:func:`inbetween_jax.models.cae.gate.gate_clips`).
+    ``model.net_edge_fade`` the network's fill meets each keyframe at the capture's speed
+    (:func:`~inbetween_jax.models.cae.edges.match_edge_velocity`).  With ``model.ood_gate`` (and ``gate``) every
+    gap -- a run of frames with nothing known -- is moved toward the base by the out-of-distribution gate
+    (:func:`inbetween_jax.models.cae.gate.gate_clips`).
     """
     x = np.asarray(x_norm, np.float32)
     single = x.ndim == 2
@@ -119,6 +122,10 @@ def fill(model, x_norm, mask, keep_known: bool = False, chunk: int = 64, gate: b
     xb, mb = ((x * m)[None], m[None]) if single else (x * m, m)
     out = np.concatenate([np.asarray(model.predict(xb[i:i + chunk], mb[i:i + chunk]))
                           for i in range(0, len(xb), chunk)])
+    cfg = getattr(model, "cfg", None)
+    fade = float(getattr(cfg.model, "net_edge_fade", 0.0)) if cfg is not None else 0.0
+    if fade > 0:                    # the network's fill meets each keyframe at the capture's speed (edges.py)
+        out = match_edge_velocity(out, xb, mb, fade, slice(0, 3 * model.num_joints))
     if gate and getattr(model, "gate", None) is not None and model.cfg.model.ood_gate:
         from inbetween_jax.models.cae.gate import gate_clips
         out = gate_clips(model, xb, mb, out)[0]
