@@ -160,6 +160,17 @@ class Prepared:
         """Whether generated motions need the file's rig put back (:meth:`on_user_rig`)."""
         return self.match is not None or self.transfer is not None
 
+    def end_keys(self, start: int, end, end_frame: int, frames: int):
+        """The keyframes a generated transition is put back between: a Motion on the file's rig of ``frames``
+        frames, frame ``start`` of :attr:`full` throughout but the last, which is frame ``end_frame`` of
+        ``end.full`` (``end``: this Prepared or the end keyframe's file's).  The ``user`` of :meth:`on_user_rig`
+        with its default ``known`` (the first and the last frame)."""
+        idx = np.full(frames, start)
+        keys = dataclasses.replace(self.full, local_quats=self.full.local_quats[idx],
+                                   local_pos=self.full.local_pos[idx])
+        keys.local_quats[-1], keys.local_pos[-1] = end.full.local_quats[end_frame], end.full.local_pos[end_frame]
+        return keys
+
     def on_user_rig(self, generated, user=None, known=None):
         """A motion generated on the checkpoint's joints and unit -> the file's rig and unit.  ``user``: a Motion
         on the file's rig with the same frame count whose ``known`` frames (default the first and the last) are

@@ -245,11 +245,5 @@ def _on_run_rig(motion, path: str, skel, fps, notes: list):
 
 def _on_user_rig(motion, prep, start: int, kprep, key_frame: int):
     """A generated Motion on the run's rig and unit -> the user's file rig and unit (at the run's rate)."""
-    if not prep.on_other_rig:
-        return prep.to_file_unit(motion)
-    t = motion.num_frames
-    idx = np.full(t, start)        # key_frame is the key file's: taken from kprep.full below
-    keys = dataclasses.replace(prep.full, local_quats=prep.full.local_quats[idx].copy(),
-                               local_pos=prep.full.local_pos[idx].copy())
-    keys.local_quats[-1], keys.local_pos[-1] = kprep.full.local_quats[key_frame], kprep.full.local_pos[key_frame]
+    keys = prep.end_keys(start, kprep, key_frame, motion.num_frames) if prep.on_other_rig else None
     return prep.on_user_rig(motion, keys)

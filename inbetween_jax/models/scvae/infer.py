@@ -406,11 +406,8 @@ def infill(args, run):
     t = args.frames + 2
     w = (np.arange(t) / (t - 1))[:, None, None]
     base_pos = (1 - w) * sm.local_pos[sf] + w * em.local_pos[ef]       # joints with position channels: lerp
-    keys = None
-    if ps.on_other_rig:             # the user's rig: keyframes at both ends, the rest from the generated motion
-        idx = np.full(t, sf)          # frame ef is the end file's: taken from pe.full below, never from ps.full
-        keys = dataclasses.replace(ps.full, local_quats=ps.full.local_quats[idx], local_pos=ps.full.local_pos[idx])
-        keys.local_quats[-1], keys.local_pos[-1] = pe.full.local_quats[ef], pe.full.local_pos[ef]
+    # the user's rig: keyframes at both ends (frame ef is the end file's), the rest from the generated motion
+    keys = ps.end_keys(sf, pe, ef, t) if ps.on_other_rig else None
     samples = []
     for name, q, r in zip(sample_names(args.samples), res["q"], res["r"]):
         pos = base_pos.copy()
