@@ -19,7 +19,12 @@ the gap (the body-frame joint positions; the root keeps the Hermite root path, a
   while the capture moves it: a speed step at the keyframe;
 * ``... + root fade k``: the body as ``edge fade`` (``--root-body-fade``, 0.3 as shipped) and the root's floor path,
   which ``model.root_bound`` holds to the limited Hermite of the known root positions, on that Hermite edge-faded
-  too (``model.root_edge_fade``, shipped 0.4 since 2026-12-07).
+  too (``model.root_edge_fade``, shipped 0.4 since 2026-12-07);
+* ``rot ...`` (``--rotations``): the body pose from the joints' rotations instead of their positions.  Each local
+  rotation (the root's included) becomes a rotation vector about the frame before the gap, ``log(q_{a-1}^-1
+  q_t)``; those rows and the root's height are filled as named (``linear``: Slerp; ``limited``, ``edge fade k``,
+  ``damp k`` as above), then forward kinematics gives the body-frame positions.  Bones keep their length and
+  limbs swing on arcs, where the positional fills cut across chords.
 
 Printed: per set and (activity group, gap length), the mean error over the shipped base's, and the pooled mean /
 p90 / max, for every variant; and how much a joint's step changes across the keyframes (the speed step where the
@@ -37,12 +42,13 @@ import numpy as np
 from inbetween_jax.data import load_motions
 from inbetween_jax.data.activities import activity_group
 from inbetween_jax.geometry import forward_kinematics
+from inbetween_jax.geometry.quaternion import quat_align, quat_from_axis_angle, quat_mul, quat_conj, quat_to_axis_angle
 from inbetween_jax.models.cae.features import body_frame_features
 from inbetween_jax.models.cae.gate import base_fill
 from inbetween_jax.models.cae.in_file import gap_positions, gap_starts, keyframe_step_change
 from inbetween_jax.models.cae.infer import load
 from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
-from inbetween_jax.baselines import hermite_fill
+from inbetween_jax.baselines import hermite_fill, linear_fill
 from inbetween_jax.train.run import load_run
 
 p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -55,6 +61,7 @@ p.add_argument("--edge-fades", default="", help="limiter 3 with the cut tangent 
 p.add_argument("--root-fades", default="", help="the root path edge-faded as well (e.g. 0.3,0.4,0.5)")
 p.add_argument("--root-body-fade", type=float, default=0.3, help="the body's edge fade with --root-fades")
 p.add_argument("--damp-limits", default="none", help="limiters with each damping (none = unlimited)")
+p.add_argument("--rotations", action="store_true", help="also the body from filled rotations (Slerp, Hermite forms)")
 a = p.parse_args()
 model = load(load_run(a.run_dir))
 model.cfg = dataclasses.replace(model.cfg, model=dataclasses.replace(model.cfg.model, root_edge_fade=0.0))
@@ -82,8 +89,28 @@ names = ([f"limit {v:g}" for v in limits] + [f"pull {b:g} / {w:g}" for b in pull
          + [f"damp {k:g}" + ("" if lim is None else f" / limit {lim:g}") for k, lim in damped]
          + [f"edge fade {k:g}" for k in fades]
          + [f"edge fade {a.root_body_fade:g} + root fade {k:g}" for k in root_fades])
+ROTATION_FILLS = {"rot linear (Slerp)": linear_fill, "rot limited": hermite_fill,
+                  "rot edge fade 0.3": lambda x, k: hermite_fill(x, k, edge_fade=0.3),
+                  "rot damp 0.1": lambda x, k: hermite_fill(x, k, limit=None, damping=0.1)} if a.rotations else {}
+names += list(ROTATION_FILLS)
 pos_rows = slice(0, 3 * j)                       # body-frame joint positions; the last three rows: root velocities
 
+
+
+def rotation_filled(m, lo, hi, fm, fill):
+    """Motion m with the gap [lo, hi)'s local rotations and root height filled as rotation vectors about frame
+    lo - 1 (module docstring)."""
+    q = np.asarray(m.local_quats, np.float64)
+    ref = np.broadcast_to(q[lo - 1], q.shape)
+    axis, angle = quat_to_axis_angle(quat_align(quat_mul(quat_conj(ref), q), np.array([1.0, 0, 0, 0])))
+    rows = np.concatenate([(axis * angle[..., None]).reshape(len(q), -1).T, np.asarray(m.local_pos)[:, 0, 1:2].T])
+    out = np.asarray(fill(rows, np.broadcast_to(fm[None], rows.shape)), np.float64)
+    vec = out[:-1].T.reshape(q.shape[:2] + (3,))
+    ang = np.linalg.norm(vec, axis=-1)
+    qf, lp = q.copy(), np.array(m.local_pos, np.float64)
+    qf[lo:hi] = quat_mul(ref, quat_from_axis_angle(vec / np.maximum(ang, 1e-12)[..., None], ang))[lo:hi]
+    lp[lo:hi, 0, 1] = out[-1, lo:hi]
+    return dataclasses.replace(m, local_quats=qf.astype(np.float32), local_pos=lp.astype(np.float32))
 
 
 recs = []
@@ -130,6 +157,11 @@ for set_name, split in (("validation", "val-subjects"), ("fit", "fit-subjects"))
                     y = base.copy()
                     y[pos_rows] = np.asarray(hermite_fill(xm, mask, edge_fade=a.root_body_fade), np.float32)[pos_rows]
                     ratios += [error(y, m_) / e0 for m_ in root_models]
+                for fill in ROTATION_FILLS.values():
+                    y = base.copy()
+                    alt = body_frame_features(rotation_filled(m, lo, hi, fm, fill), known=fm > 0.5)
+                    y[pos_rows] = model.normalizer(alt.features).T.astype(np.float32)[pos_rows]
+                    ratios.append(error(y) / e0)
                 recs.append((set_name, f"{group}/{g}", ratios, jumps[1:], keyframe_step_change(gp, lo, hi)))
 
 print(f"{len(recs)} gaps; error over the shipped Hermite base's (mean per set and group)")

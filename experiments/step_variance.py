@@ -39,9 +39,10 @@ def child(width, reps):
     step = make_step_fn(T.make_train_step(cfg, data.parents, 51), jax.random.key(1))
     holder = [jax.tree.map(strongly_typed, T.make_init_fn(cfg, stats, data.q.shape[2])(jax.random.key(0)))]
 
-    def call():                                 # JAX's step, or (SV_TORCH=1) the PyTorch-eager reference's
+    def jax_call():
         holder[0], m = step(holder[0], batch, np.int32(0))
         jax.block_until_ready(m["loss"])
+    call = jax_call                             # JAX's step, or (SV_TORCH=1) the PyTorch-eager reference's
     if os.environ.get("SV_TORCH"):
         from inbetween_jax.evaluation.torch_ref import scvae as torch_scvae
         call = torch_scvae.make_step(cfg, data.q.shape[2], data.parents, stats, np_batch, 51)

@@ -1,7 +1,7 @@
 """The CAE inside a file (:mod:`inbetween_jax.models.cae.in_file`, the bench's ``"inside a file"`` rows) on a
 validation subject's walk with the shipped weights: the base the ratio divides by is what ``infill`` itself gives
-when its gate closes and nothing is matched (ratio 1 to the last digits), the matched walk gaps beat it, and the
-straight-line ratio is the error over straight lines between the joint positions beside the gap."""
+when its gate closes and nothing is matched (ratio 1 to the last digits), the limited Hermite fill is that base
+without its edge fades, the matched walk gaps beat it, and the straight-line ratio is the error over straight lines between the joint positions beside the gap."""
 from __future__ import annotations
 
 import copy
@@ -33,6 +33,15 @@ def test_a_closed_gate_without_matching_is_the_base(shipped_and_walk):
     assert len(recs) >= 3 and {r["frames"] for r in recs} == {30, 60}
     np.testing.assert_allclose([r["ratio"] for r in recs], 1.0, atol=1e-6)
     assert not any(r["matched"] for r in recs)
+    # the base gives the limited Hermite's cut edge velocity back (model.base_edge_fade, root_edge_fade): on a walk
+    # it is the better fill, and without those fades the base is the limited Hermite itself
+    assert np.mean([r["x_limited"] for r in recs]) < 0.99
+    unfaded = copy.copy(closed)
+    unfaded.cfg = dataclasses.replace(closed.cfg, model=dataclasses.replace(closed.cfg.model, base_edge_fade=0.0,
+                                                                              root_edge_fade=0.0))
+    plain = gap_records(unfaded, [walk], limit=2)
+    np.testing.assert_allclose([r["x_limited"] for r in plain], 1.0, atol=1e-6)
+    np.testing.assert_allclose([r["ratio"] for r in plain], 1.0, atol=1e-6)
 
 
 def test_matched_walk_gaps_beat_their_base(shipped_and_walk):

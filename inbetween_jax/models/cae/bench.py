@@ -142,8 +142,8 @@ def run(source: str | None, results_dir: str, run_dir: str | None, quick: bool =
     result["markdown"] += "\n\n" + "\n\n".join(
         worst_case_markdown([r for r in wc if r["base"] == base and r["split"] == split],
                             f"CAE per {'gap' if 'inside a file' in split else 'clip and gap position'}, {split}")
-        for base in ("the Hermite fill", "linear fill", "straight lines")
-        for split in dict.fromkeys(r["split"] for r in wc))
+        for base in dict.fromkeys(r["base"] for r in wc)
+        for split in dict.fromkeys(r["split"] for r in wc if r["base"] == base))
     os.makedirs(results_dir, exist_ok=True)
     with open(os.path.join(results_dir, "cae_bench.json"), "w") as fh:
         json.dump({k: v for k, v in result.items() if k != "markdown"}, fh, indent=1)
@@ -155,8 +155,8 @@ def run(source: str | None, results_dir: str, run_dir: str | None, quick: bool =
 def in_file_rows(models, runs, test_motions, source: str, quick: bool) -> list:
     """Per-gap rows of each run inside a file (:mod:`.in_file`: ``inbetween infill``'s own path, gate and motion
     matching included) on the test motions and the run's validation split of the run's own training source
-    (the embedded clips are too short for 1-2 s gaps): ratio to its pre-fill ("the Hermite fill") and to straight
-    lines, splits ``"test, inside a file"`` / ``"validation, inside a file"``."""
+    (the embedded clips are too short for 1-2 s gaps): ratio to its base, to the limited Hermite fill and to
+    straight lines (:data:`.in_file.BASES`), splits ``"test, inside a file"`` / ``"validation, inside a file"``."""
     from inbetween_jax.models.cae.in_file import base_rows, gap_records
     out = []
     for v, model in models.items():

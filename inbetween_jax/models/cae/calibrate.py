@@ -7,21 +7,21 @@ import numpy as np
 
 def per_window_rows(positions, names, methods, data, runs, models) -> list:
     """Worst-case rows (:mod:`inbetween_jax.evaluation.worst_case`) of every learned method: each clip's error
-    over every gap position as a ratio to the Hermite fill's and to linear fill's, on the test clips; plus the
-    validation subjects from a gated run's ``ood_calibration.json`` (its calibration gaps at the gate's
-    weights, ratio to the run's pre-fill)."""
+    over every gap position as a ratio to the limited Hermite fill's (the bench's ``hermite`` row) and to linear
+    fill's, on the test clips; plus the validation subjects from a gated run's ``ood_calibration.json`` (its
+    calibration gaps at the gate's weights, ratio to the fill the gate falls back to, "its base")."""
     from inbetween_jax.evaluation.worst_case import worst_case_rows
     from inbetween_jax.models.ood_runs import calibration_worst_case
     out = []
     for m in methods:
         if m in ("linear", "hermite"):
             continue
-        for base, label in (("hermite", "the Hermite fill"), ("linear", "linear fill")):
+        for base, label in (("hermite", "the limited Hermite fill"), ("linear", "linear fill")):
             recs = [{"name": n, "frames": positions[m][s]["frames"], "ratio": float(o / max(b, 1e-6))}
                     for s in positions[m] for n, o, b in zip(names, positions[m][s]["per_clip"],
                                                              positions[base][s]["per_clip"])]
             out += worst_case_rows(recs, "per_window", data, "cae", label, "test")
-        out += calibration_worst_case(runs[m].run_dir, getattr(models[m], "gate", None), "cae", "the Hermite fill")
+        out += calibration_worst_case(runs[m].run_dir, getattr(models[m], "gate", None), "cae", "its base")
     return out
 
 

@@ -66,21 +66,23 @@ def training_contexts(bank, count: int = 4000, gaps=(15, 120), margin: int = 8, 
     return np.concatenate(out)
 
 
-def base_fill(model, x_norm, mask, edge_fade: bool = True) -> np.ndarray:
+def base_fill(model, x_norm, mask, edge_fade: bool = True, pre=None) -> np.ndarray:
     """The run's non-learned fill (``model.fill``: the limited cubic Hermite or the straight line) of the masked
     clips (N, D, T): the base the gate blends toward.  With ``model.base_edge_fade`` k > 0 (and ``edge_fade``) the
     body rows (the joint positions, not the root's velocities) of a Hermite fill give back the edge velocity the
     tangent limiter cut, fading as ``exp(-k frames)`` from each edge (``hermite_fill(edge_fade=k)``): the fill
-    leaves and reaches each keyframe at the motion's own speed.  ``edge_fade=False``: the network's pre-fill."""
+    leaves and reaches each keyframe at the motion's own speed.  ``edge_fade=False``: the network's pre-fill;
+    ``pre``: that pre-fill when the caller has it already (not computed again)."""
     from inbetween_jax.baselines import hermite_fill, linear_fill
     x = np.asarray(x_norm, np.float32) * mask
     if model.cfg.model.fill != "hermite":
-        return np.asarray(linear_fill(x, mask), np.float32)
-    out = np.asarray(hermite_fill(x, mask), np.float32)
+        return np.asarray(linear_fill(x, mask), np.float32) if pre is None else np.asarray(pre, np.float32)
+    out = np.array(hermite_fill(x, mask) if pre is None else pre, np.float32, copy=True)
     fade = float(getattr(model.cfg.model, "base_edge_fade", 0.0))
     if edge_fade and fade > 0:
         rows = slice(0, 3 * model.num_joints)
-        out[..., rows, :] = np.asarray(hermite_fill(x, mask, edge_fade=fade), np.float32)[..., rows, :]
+        m = np.broadcast_to(np.asarray(mask, np.float32), x.shape)
+        out[..., rows, :] = np.asarray(hermite_fill(x[..., rows, :], m[..., rows, :], edge_fade=fade), np.float32)
     return out
 
 
@@ -98,9 +100,9 @@ def gate_clips(model, x_masked, mask, y):
     cap = getattr(model, "knn_cap", None) if getattr(model.cfg.model, "knn_gate", False) else None
     m = np.broadcast_to(np.asarray(mask, np.float32), np.shape(y))
     frames = (m.max(axis=1) > 0.5).astype(np.float32)                       # (N, T) 1 = some known
-    base = base_fill(model, x_masked, m)
+    pre = base_fill(model, x_masked, m, edge_fade=False)
+    base = base_fill(model, x_masked, m, pre=pre)
     partial = (m < 0.5) & (frames[:, None, :] > 0.5) & (m.max(axis=2, keepdims=True) > 0.5)
-    pre = base_fill(model, x_masked, m, edge_fade=False) if partial.any() else base
     out, info = np.where(partial, pre, np.asarray(y, np.float32)).astype(np.float32), []
     for i in range(len(out)):
         rows = []

@@ -1,11 +1,14 @@
 """The CAE inside a file, as ``inbetween infill --model cae`` fills it: per gap, the error of
 :func:`~inbetween_jax.models.cae.infer.process_motion`'s global joint positions (gate, motion matching and root bound
-as the run's config says) over its base's, the run's non-learned pre-fill through the same root path (the limited
-cubic Hermite for ``model.fill=hermite``), and over straight lines between the global joint positions beside the
-gap.  The bench writes these as ``per_window`` rows of its own split names (``"test, inside a file"`` /
+as the run's config says) over three non-learned fills: its base, the fill the gate falls back to
+(:func:`~inbetween_jax.models.cae.gate.base_fill` through the same root path: the limited cubic Hermite with the
+run's edge fades, ``model.base_edge_fade`` and ``model.root_edge_fade``); the limited cubic Hermite without them
+(body and root path; the CAE's base until 2026-12-07, and the network's pre-fill); and straight lines between the
+global joint positions beside the gap.  The bench writes these as ``per_window`` rows of its own split names (``"test, inside a file"`` /
 ``"validation, inside a file"``).
 
-    gap_records(model, motions, seconds=(1, 2)) -> list of {"name", "frames", "ratio", "x_straight", "matched",
+    gap_records(model, motions, seconds=(1, 2)) -> list of {"name", "frames", "ratio", "x_limited", "x_straight",
+                                                              "matched",
                                                               "step_change", "step_change_capture",
                                                               "ood_score", "gate_weight"}
 
@@ -21,7 +24,8 @@ __all__ = ["gap_records", "gap_starts", "gap_positions", "keyframe_step_change",
 
 SECONDS = (1, 2)          # gap lengths, as the validation choice of the match (experiments/cae_motion_match.py)
 MARGIN_FRAMES = 10        # known frames kept before the first gap and after the last
-BASES = (("ratio", "the Hermite fill"), ("x_straight", "straight lines"))   # gap_records' ratios and their bases
+BASES = (("ratio", "its base"), ("x_limited", "the limited Hermite fill"), ("x_straight", "straight lines"))
+"""gap_records' ratios and the base each divides by ("its base": the fill the gate falls back to)."""
 
 
 def gap_starts(num_frames: int, length: int) -> range:
@@ -30,14 +34,18 @@ def gap_starts(num_frames: int, length: int) -> range:
     return range(MARGIN_FRAMES, num_frames - length - MARGIN_FRAMES, max(length, 30))
 
 
-def gap_positions(model, y_norm, feats, frame_mask) -> np.ndarray:
+def gap_positions(model, y_norm, feats, frame_mask, root_edge_fade: float | None = None) -> np.ndarray:
     """(T, J, 3) global joint positions of one filled clip ``y_norm`` (D, T, normalised) as ``infill`` puts them
     back: the known frames on their own root track (``feats``: the file's
     :class:`~inbetween_jax.models.cae.features.MotionFeatures`), each gap's root held to the run's
-    ``model.root_bound`` around the Hermite root path (``model.root_edge_fade``: its edge tangents)."""
+    ``model.root_bound`` around the Hermite root path (``model.root_edge_fade``, or ``root_edge_fade`` when given:
+    its edge tangents)."""
     from inbetween_jax.models.cae.features import root_path_options, to_global
+    roots = root_path_options(model.cfg.model)
+    if root_edge_fade is not None:
+        roots["root_edge_fade"] = float(root_edge_fade)
     return to_global(y_norm, model.normalizer, model.num_joints, feats.ref0, feats.yaw0, known_feats=feats.features,
-                     frame_mask=frame_mask, known_track=(feats.ref, feats.yaw), **root_path_options(model.cfg.model))
+                     frame_mask=frame_mask, known_track=(feats.ref, feats.yaw), **roots)
 
 
 def keyframe_step_change(pos, lo: int, hi: int) -> float:
@@ -74,7 +82,9 @@ def gap_records(model, motions, seconds=SECONDS, limit: int | None = None) -> li
                 feats = body_frame_features(m, known=fm > 0.5)
                 mask = frame_mask_image(fm, j)
                 x = model.normalizer(feats.features).T.astype(np.float32)
-                base = gap_positions(model, base_fill(model, (x * mask)[None], mask[None])[0], feats, fm)
+                pre = base_fill(model, (x * mask)[None], mask[None], edge_fade=False)
+                base = gap_positions(model, base_fill(model, (x * mask)[None], mask[None], pre=pre)[0], feats, fm)
+                limited = gap_positions(model, pre[0], feats, fm, root_edge_fade=0.0)
                 w = (np.arange(1, g + 1) / (g + 1))[:, None, None]
                 straight = gp[lo - 1] + w * (gp[lo + g] - gp[lo - 1])
 
@@ -82,6 +92,7 @@ def gap_records(model, motions, seconds=SECONDS, limit: int | None = None) -> li
                     return float(np.linalg.norm(pos[lo:lo + g] - gp[lo:lo + g], axis=-1).mean())
                 e = err(res["positions"])
                 out.append({"name": str(m.source), "frames": g, "ratio": e / max(err(base), 1e-9),
+                            "x_limited": e / max(err(limited), 1e-9),
                             "x_straight": e / max(float(np.linalg.norm(straight - gp[lo:lo + g], axis=-1).mean()),
                                                   1e-9),
                             "matched": any(r.get("match_weight", 0.0) > 0.5 for r in res["gaps_ood"]),
