@@ -5,6 +5,7 @@
     python experiments/cae_step_speed.py flags [--rounds 3]   # train steps under each YNNPACK setting
     python experiments/cae_step_speed.py profile [MODEL]      # a train step's op time by XLA op kind (cae)
     python experiments/cae_step_speed.py remat [MODEL] [--reps 15]   # model.remat policies, one process (scvae-cpu)
+    python experiments/cae_step_speed.py ab MODEL --try "" --try train.ema_decay=0.995   # any config changes
 
 ``layers`` times, per conv shape of the CAE (batch 16, 66 x 168 input), the weight gradient of XLA's own
 autodiff against the custom VJP the model used before (kh*kw shifted-slice matmuls).  ``grad`` times the
@@ -13,7 +14,8 @@ autodiff against the custom VJP the model used before (kh*kw shifted-slice matmu
 fresh process per model and ``--xla_cpu_experimental_ynn_fusion_type`` setting (XLA's default, ``individual_dot``,
 none), rounds in rotating order, and prints each median of 9 train steps (:mod:`inbetween_jax.xla_cpu`).
 ``remat`` times the S-CVAE's or the interaction model's step under each ``model.remat`` policy in one process
-(:mod:`inbetween_jax.train.remat`; the CAE has no rollout).  Medians in ms; compare ratios within one run.
+(:mod:`inbetween_jax.train.remat`; the CAE has no rollout); ``ab`` the same for any config changes (``--try``:
+space-separated ``key=value``, the first the reference).  Medians in ms; compare ratios within one run.
 """
 import argparse
 import os
@@ -164,16 +166,22 @@ def entry_copies(hlo: str) -> tuple:
 
 
 def remat(model: str, reps: int):
-    """``model.remat`` A/B in one process: one step function per policy (:mod:`inbetween_jax.train.remat`), the
-    same first state and batch; the calls interleaved (order reversed every round), medians of wall and CPU
-    time (``time.process_time``: both threads' work, less moved by other jobs than the wall time), and the first
-    step's loss of each (the same maths: equal to float tolerance)."""
-    import jax
+    """``model.remat`` A/B in one process (:func:`compare`), one step function per policy
+    (:mod:`inbetween_jax.train.remat`), keeping everything the reference."""
     from inbetween_jax.train.remat import REMAT_POLICIES
-    policies = list(REMAT_POLICIES)
+    compare(model, {p or "(empty): keep all": [f"model.remat={p}"] for p in REMAT_POLICIES}, reps, "`model.remat`")
+
+
+def compare(model: str, variants: dict, reps: int, what: str = "config"):
+    """A/B in one process: one step function per variant (``{name: [key=value, ...]}``, the first the
+    reference), the same first state and batch; the calls interleaved (order reversed every round), medians of wall
+    and CPU time (``time.process_time``: both threads' work, less moved by other jobs than the wall time), and the
+    first step's loss of each (the same maths: equal to float tolerance)."""
+    import jax
+    policies = list(variants)
     calls, loss = {}, {}
     for p in policies:
-        calls[p] = step_call(model, [f"model.remat={p}"])
+        calls[p] = step_call(model, variants[p])
         m = calls[p]()
         loss[p] = float(jax.device_get(m["loss"]))
         calls[p]()
@@ -184,14 +192,14 @@ def remat(model: str, reps: int):
             calls[p]()
             wall[p].append(1000 * (time.perf_counter() - t))
             cpu[p].append(1000 * (time.process_time() - c))
-    w0, c0 = np.median(wall[""]), np.median(cpu[""])
-    print(f"| {model}, `model.remat` ({reps} calls each) | wall ms | x keep all | CPU ms | x keep all | first loss "
+    w0, c0 = np.median(wall[policies[0]]), np.median(cpu[policies[0]])
+    print(f"| {model}, {what} ({reps} calls each) | wall ms | x the first | CPU ms | x the first | first loss "
           "| copies once per step |")
     print("|---|---|---|---|---|---|---|")
     for p in policies:
         w, c = np.median(wall[p]), np.median(cpu[p])
         n, mb = entry_copies(calls[p].hlo())
-        print(f"| `{p or '(empty): keep all'}` | {w:.1f} | {w / w0:.3f} | {c:.1f} | {c / c0:.3f} | {loss[p]:.7f} "
+        print(f"| `{p}` | {w:.1f} | {w / w0:.3f} | {c:.1f} | {c / c0:.3f} | {loss[p]:.7f} "
               f"| {n}, {mb:.1f} MB |", flush=True)
 
 
@@ -239,10 +247,11 @@ def profile(model: str, calls: int = 5):
 
 if __name__ == "__main__":
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("what", choices=("layers", "grad", "flags", "step", "profile", "remat"))
+    p.add_argument("what", choices=("layers", "grad", "flags", "step", "profile", "remat", "ab"))
     p.add_argument("model", nargs="?", choices=MODELS)
     p.add_argument("--rounds", type=int, default=3)
-    p.add_argument("--reps", type=int, default=15, help="remat: timed calls per policy")
+    p.add_argument("--reps", type=int, default=15, help="remat, ab: timed calls per variant")
+    p.add_argument("--try", dest="tries", action="append", default=[], help="ab: a variant's key=value changes")
     a = p.parse_args()
     if a.what == "step":
         print(f"{step_ms(a.model):.3f}")
@@ -253,6 +262,10 @@ if __name__ == "__main__":
         from inbetween_jax import xla_cpu
         xla_cpu.configure(model.split("-")[0])
         remat(model, a.reps)
+    elif a.what == "ab":
+        from inbetween_jax import xla_cpu
+        xla_cpu.configure((a.model or "cae").split("-")[0])
+        compare(a.model or "cae", {t or "(as preset)": t.split() for t in a.tries}, a.reps)
     elif a.what == "profile":
         from inbetween_jax import xla_cpu
         xla_cpu.configure((a.model or "cae").split("-")[0])          # as `inbetween` runs the model

@@ -178,6 +178,8 @@ class TrainConfig:
     split: str = "train"            # data split trained on; "fit" / "fit-subjects" hold validation files /
                                     # whole subjects out (checkpoint selection on them)
     keep_checkpoints: int = 3       # checkpoints kept on disk (0: all, for selection on the validation split)
+    ema_decay: float = 0.0          # > 0: keep a moving average of the parameters (e.g. 0.999; optim.with_ema)
+    ema_eval: bool = True           # inference (selection, bench, infill) reads that average when there is one
 
 
 def config_from_dict(cls: type, data: Mapping | None) -> Any:

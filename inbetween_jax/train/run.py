@@ -12,7 +12,8 @@ kept key paths, provenance) and ``params.npz`` (the inference parameters, '/'-jo
 ``checkpoints/``; :func:`load_run` and :func:`restore_state` read it the same way.
 
 ``run.json`` is written (atomically) before training starts; resuming with another model, preset or core config
-(anything but ``train.num_steps`` / ``log_every`` / ``ckpt_every``) is refused with a one-line :class:`RunError`.
+(anything but ``train.num_steps`` / ``log_every`` / ``ckpt_every`` / ``ema_eval``) is refused with a one-line
+:class:`RunError`.
 Statistics are JSON lists; :func:`load_run` returns them as float32 NumPy arrays.
 """
 from __future__ import annotations
@@ -35,7 +36,7 @@ RUN_FILE = "run.json"
 WEIGHTS_FILE = "params.npz"
 SELECTION_FILE = "selection.json"     # the checkpoint chosen on the validation split (train/select.py)
 FORMAT = 1
-_NOT_CORE = ("num_steps", "log_every", "ckpt_every")
+_NOT_CORE = ("num_steps", "log_every", "ckpt_every", "ema_eval")
 
 
 class RunError(ValueError):

@@ -57,11 +57,15 @@ def select_checkpoint(run_dir: str, source: str, score_fn: Callable, metric: str
 
 def select_with_bench(run_dir: str, source: str, bench, log: Callable[[str], None] | None = print) -> dict:
     """:func:`select_checkpoint` with a model's ``bench.val_score`` on ``source``, recorded under the bench's
-    ``VAL_METRIC`` name (default ``"val L2P"``)."""
+    ``VAL_METRIC`` name (default ``"val L2P"``; with the parameters' moving average in use, ``train.ema_decay``,
+    the name says so)."""
     from inbetween_jax.data.datasets import val_split_of     # here: the datasets module imports JAX
-    split = val_split_of(load_run(run_dir, need_checkpoint=False).config.get("train", {}).get("split", "fit"))
-    return select_checkpoint(run_dir, source, lambda r: bench.val_score(r, source),
-                             getattr(bench, "VAL_METRIC", "val L2P"), log=log, split=split)
+    train = load_run(run_dir, need_checkpoint=False).config.get("train", {})
+    split = val_split_of(train.get("split", "fit"))
+    metric = getattr(bench, "VAL_METRIC", "val L2P")
+    if train.get("ema_decay", 0.0) > 0 and train.get("ema_eval", True):
+        metric += ", parameters' moving average"     # another score than the last parameters': not reused for them
+    return select_checkpoint(run_dir, source, lambda r: bench.val_score(r, source), metric, log=log, split=split)
 
 
 def time_to_score(run_dir: str, selection: dict, target: float) -> dict:

@@ -99,7 +99,9 @@ def load(run: Run) -> TrainedCAE:
             match = MatchBank.from_transition_bank(tb, skeleton, normalizer, j)
         except UserError as e:
             raise RunError(f"{run.run_dir}: {e}") from None
-    model = TrainedCAE(state["params"], cfg, normalizer, skeleton, j, run.step, gate, match)
+    from inbetween_jax.train.optim import inference_params
+    params = inference_params(state["params"], state["opt_state"], cfg.train)     # the moving average, if kept
+    model = TrainedCAE(params, cfg, normalizer, skeleton, j, run.step, gate, match)
     if gate is not None and cfg.model.knn_gate:
         from inbetween_jax.models.cae.gate import knn_cap
         model.knn_cap = knn_cap(run.run_dir)

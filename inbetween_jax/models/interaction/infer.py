@@ -78,7 +78,9 @@ def load(run: Run, with_gate: bool = True) -> Trained:
     gate = run_gate(run.run_dir, cfg.model.ood_gate) if with_gate else None
     capped = gate is not None and cfg.model.departure_cap > 0
     coef = load_gate_array(run.run_dir, BASE_ERROR_KEY, "model.departure_cap") if capped else None
-    return Trained(cfg, state["params"], J, fa, skel, int(run.step), run.run_dir,
+    from inbetween_jax.train.optim import inference_params
+    params = inference_params(state["params"], state["opt"], cfg.train)            # the moving average, if kept
+    return Trained(cfg, params, J, fa, skel, int(run.step), run.run_dir,
                    load_bank(run.run_dir, cfg, J), gate, coef)
 
 

@@ -79,6 +79,8 @@ def load(run) -> Trained:
         raise RunError(f"{run.run_dir}: run.json records no skeleton (num_joints unknown)")
     init_fn = make_init_fn(cfg, stats_like(int(num_joints)), int(num_joints))
     state = restore_state(run, jax.eval_shape(init_fn, jax.random.key(0)))
+    from inbetween_jax.train.optim import inference_params
+    state = dict(state, params=inference_params(state["params"], state["opt_g"], cfg.train))   # the average, if kept
     from inbetween_jax.models.ood import run_gate
     gate = run_gate(run.run_dir, cfg.model.ood_gate)
     from inbetween_jax.models.scvae.gate import context_gate
