@@ -19,20 +19,13 @@ def main() -> None:
     run = load_run(a.run_dir, need_checkpoint=False)
     malloc.reexec()
     xla_cpu.configure(run.model)
-    from inbetween_jax.models import REGISTRY
-    from inbetween_jax.runner import build_config
-    from inbetween_jax.shipped import shipped_run
-    from inbetween_jax.train import config_to_dict
-    from inbetween_jax.train.select import checkpoint_wall_times
-    import json
     import os
+    from inbetween_jax.models import REGISTRY
+    from inbetween_jax.shipped import shipped_as_trained
+    from inbetween_jax.train.select import checkpoint_wall_times
     bench = REGISTRY[run.model].module("bench")
     source = a.source or run.data.get("source")
-    shipped = shipped_run(run.model)
-    recipe = json.load(open(f"{shipped.run_dir}/run.json"))
-    as_trained = dataclasses.replace(shipped, config=config_to_dict(build_config(run.model, recipe["preset"],
-                                                                              recipe["overrides"])))
-    target = float(bench.val_score(as_trained, source))
+    target = float(bench.val_score(shipped_as_trained(run.model), source))
     steps = [s for s in _checkpoint_steps(os.path.join(a.run_dir, "checkpoints")) if s > 0]
     walls = checkpoint_wall_times(a.run_dir, steps)
     print(f"{run.model}: target {target:.4f} (the shipped weights' validation score); train.ema_decay "

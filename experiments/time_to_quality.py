@@ -13,7 +13,6 @@ excluded).
 ``--stop-at N`` ends training after step N with the full schedule (the shipped CAE was stopped at 600 of 1,600).
 """
 import argparse
-import dataclasses
 import json
 
 
@@ -29,20 +28,16 @@ def main() -> None:
     malloc.reexec()                                             # as `inbetween train MODEL` runs: its malloc
     xla_cpu.configure(a.model)                                  # and XLA:CPU settings
     from inbetween_jax.models import REGISTRY
-    from inbetween_jax.runner import build_config, train_model
-    from inbetween_jax.train import config_to_dict
-    from inbetween_jax.shipped import shipped_run
+    from inbetween_jax.runner import train_model
+    from inbetween_jax.shipped import shipped_as_trained
     from inbetween_jax.train.select import checkpoint_wall_times, select_with_bench, time_to_score
-    shipped = shipped_run(a.model)
+    shipped = shipped_as_trained(a.model)
     source = a.source or shipped.data.get("source")
     bench = REGISTRY[a.model].module("bench")
-    recipe = json.load(open(f"{shipped.run_dir}/run.json"))
-    as_trained = dataclasses.replace(shipped, config=config_to_dict(build_config(a.model, recipe["preset"],
-                                                                              recipe["overrides"])))
-    target = float(bench.val_score(as_trained, source))       # the network as trained: no inference-only switch
-    print(f"{a.model}: target {target:.4f} (the shipped weights' validation score); recipe {recipe['preset']} "
-          f"{' '.join(recipe['overrides'] + a.overrides)}", flush=True)
-    run_dir, _ = train_model(a.model, recipe["preset"], recipe["overrides"] + a.overrides, source,
+    target = float(bench.val_score(shipped, source))          # the network as trained: no inference-only switch
+    print(f"{a.model}: target {target:.4f} (the shipped weights' validation score); recipe {shipped.preset} "
+          f"{' '.join(list(shipped.overrides) + a.overrides)}", flush=True)
+    run_dir, _ = train_model(a.model, shipped.preset, list(shipped.overrides) + a.overrides, source,
                              a.run_dir or f"runs/ttq_{a.model}", stop_at=a.stop_at)
     selection = select_with_bench(run_dir, source, bench)
     out = time_to_score(run_dir, selection, target)

@@ -24,7 +24,7 @@ import numpy as np
 from inbetween_jax.train.run import RUN_FILE, WEIGHTS_FILE, Run, RunError, flat_leaves, load_run
 
 __all__ = ["ENV", "INFERENCE_SWITCHES", "KEEP", "EXACT", "weights_root", "shipped_dir", "shipped_run",
-           "inference_state", "export_run", "folder_bytes", "config_with_overrides"]
+           "shipped_as_trained", "inference_state", "export_run", "folder_bytes", "config_with_overrides"]
 
 ENV = "INBETWEEN_WEIGHTS_DIR"
 # Switches that only change inference (the trained parameters are the same either way): ``export_run(inference=)``.
@@ -74,6 +74,20 @@ def shipped_run(model: str, root: str | None = None) -> Run | None:
         raise RunError(f"{d}: holds {run.model} weights, not {model}" if run.model != model
                        else f"{d}: not a shipped run (no 'shipped' record in {RUN_FILE})")
     return run
+
+
+def shipped_as_trained(model: str, root: str | None = None) -> Run | None:
+    """:func:`shipped_run` with the config its network was trained with: the recorded preset and training
+    overrides rebuilt, so the inference-only switches set at export (:data:`INFERENCE_SWITCHES`) are off -- the
+    network's own validation score, the time-to-quality target (``experiments/time_to_quality.py``)."""
+    import dataclasses
+
+    from inbetween_jax.runner import build_config
+    from inbetween_jax.train.config import config_to_dict
+    run = shipped_run(model, root)
+    if run is None:
+        return None
+    return dataclasses.replace(run, config=config_to_dict(build_config(model, run.preset, run.overrides)))
 
 
 def _under(path: str, prefixes) -> bool:

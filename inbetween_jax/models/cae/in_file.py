@@ -82,8 +82,9 @@ def gap_records(model, motions, seconds=SECONDS, limit: int | None = None) -> li
                 feats = body_frame_features(m, known=fm > 0.5)
                 mask = frame_mask_image(fm, j)
                 x = model.normalizer(feats.features).T.astype(np.float32)
-                pre = base_fill(model, (x * mask)[None], mask[None], edge_fade=False)
-                base = gap_positions(model, base_fill(model, (x * mask)[None], mask[None], pre=pre)[0], feats, fm)
+                xm = (x * mask)[None]
+                pre = base_fill(model, xm, mask[None], edge_fade=False)
+                base = gap_positions(model, base_fill(model, xm, mask[None], pre=pre)[0], feats, fm)
                 limited = gap_positions(model, pre[0], feats, fm, root_edge_fade=0.0)
                 w = (np.arange(1, g + 1) / (g + 1))[:, None, None]
                 straight = gp[lo - 1] + w * (gp[lo + g] - gp[lo - 1])
