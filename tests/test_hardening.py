@@ -127,7 +127,20 @@ CASES = {
     "interaction_short_context": (lambda r, t: (_inter(r, a=f"{CLIP_A}:5"), "02_01.bvh"), "frames of context"),
     "interaction_frames_1000": (lambda r, t: (_inter(r, frames=1000), None), "at most 60 frames"),
     "out_is_a_file": (lambda r, t: (_scvae(r), None), "exists and is not a folder"),
+    "end_on_another_rig": (lambda r, t: (_scvae(r, end=_written(t / "rig20.bvh", _fewer_joints)), "rig20.bvh"),
+                           "has 20 joints where the other keyframe's file has 21 ("),
+    "end_with_renamed_joint": (lambda r, t: (_scvae(r, end=_written(t / "renamed.bvh", _renamed_head)), "renamed.bvh"),
+                               "where the other keyframe's file has 'head'"),
 }
+
+
+def _renamed_head(path) -> None:
+    path.write_text(SRC_TEXT.replace("JOINT head", "JOINT Head", 1))
+
+
+def _written(path, writer) -> str:
+    writer(path)
+    return str(path)
 
 
 def _mkdir(path):

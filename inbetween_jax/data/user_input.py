@@ -84,8 +84,18 @@ def check_skeleton(skel, path: str, expected=None, num_joints=None, what: str = 
 
 
 def same_skeleton(skel, path: str, ref, ref_path: str) -> None:
-    if not skel.same_topology(ref):
-        check_skeleton(skel, path, ref, what=ref_path)
+    """The file ``path`` is on the same rig (joint count, names, parents) as ``ref_path``, whose frames it pairs
+    with; else a one-line error that names both files."""
+    if skel.same_topology(ref):
+        return
+    if skel.num_joints != ref.num_joints:
+        differs = f"its skeleton has {skel.num_joints} joints where the other keyframe's file has {ref.num_joints}"
+    else:
+        j = next((j for j, (a, b, pa, pb) in enumerate(zip(skel.names, ref.names, skel.parents, ref.parents))
+                  if a != b or pa != pb), 0)
+        differs = (f"its joint {j} is {skel.names[j]!r} (parent {skel.parents[j]}) where the other keyframe's "
+                   f"file has {ref.names[j]!r} (parent {ref.parents[j]})")
+    raise UserError(f"{path}: {differs} ({ref_path}); both keyframes' files must be on one rig")
 
 
 def check_unit_quats(q, name: str, tol: float = 1e-3) -> np.ndarray:
