@@ -45,6 +45,25 @@ def test_a_constant_rate_path_is_replayed_on_the_warped_clock():
     assert early > r[0, 0, L // 2, 0] > late                                    # a > 0 earlier, a < 0 later
 
 
+def test_the_ease_harmonic_is_replayed_exactly_and_held_monotone():
+    kq, kr, tq, tr, q, r = _linear_path()
+    ease = np.linspace(-0.9, 0.9, S)[:, None]                                   # (S, B = 1)
+    out_q, out_r = retimed(kq, kr, tq, tr, q, r, 0.6, ease=ease)
+    np.testing.assert_allclose(out_r[0], r[0])                                  # sample 0 unchanged
+    t = np.arange(1, L + 1) / (L + 1)
+    for s, a in enumerate(timing_amplitudes(S, 0.6)):
+        if s == 0:
+            continue
+        e = np.clip(ease[s, 0], -(0.95 - abs(a)), 0.95 - abs(a))                # held to a monotone clock
+        u = t + a * np.sin(np.pi * t) / np.pi + e * np.sin(2 * np.pi * t) / (2 * np.pi)
+        np.testing.assert_allclose(out_r[s, 0, :, 0], 100 * u, atol=1e-9)
+        assert np.all(np.diff(out_r[s, 0, :, 0]) > 0)
+    base_q, base_r = retimed(kq, kr, tq, tr, q, r, 0.6)
+    same_q, same_r = retimed(kq, kr, tq, tr, q, r, 0.6, ease=np.zeros((S, 1)))
+    np.testing.assert_allclose(same_r, base_r)
+    np.testing.assert_allclose(same_q, base_q)
+
+
 def test_a_spread_per_window_retimes_each_window_as_its_own_spread_would():
     """``spread`` (B,): window b comes out as ``retimed`` at the number ``spread[b]`` gives it alone, here on
     three copies of the constant-rate path at spreads 0 (unchanged), 0.3 and 0.6 (closed form as above)."""

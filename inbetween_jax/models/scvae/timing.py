@@ -103,12 +103,14 @@ def body_parts(skeleton) -> np.ndarray:
     return parts
 
 
-def retimed(key_q, key_r, tgt_q, tgt_r, q, r, spread, parts=None):
+def retimed(key_q, key_r, tgt_q, tgt_r, q, r, spread, parts=None, ease=None):
     """Sample s of q (S, B, L, J, 4), r (S, B, L, 3) -- the frames strictly between keyframes key (B, J, 4) /
     (B, 3) and tgt -- replayed along the warped time of :func:`part_amplitudes` (``parts`` (J,) :func:`body_parts`
     labels: each joint on its part's clock, the root on the torso's; None: the whole body on
     :func:`timing_amplitudes`' clock), slerping / lerping between the frames it falls between.  ``spread``: a
-    number, or (B,) one per keyframe pair.  Sample 0 is unchanged.  Returns float64 arrays of q's and r's shapes."""
+    number, or (B,) one per keyframe pair.  ``ease`` (S, B), optional: a second harmonic ``e sin(2 pi t) / (2 pi)``
+    added to the clock (e < 0: slower near both keyframes, faster between), held to what keeps the clock monotone
+    (|a| + |e| <= 0.95).  Sample 0 is unchanged.  Returns float64 arrays of q's and r's shapes."""
     q, r = np.array(q, np.float64), np.array(r, np.float64)
     n_s, n_b, length, n_j = q.shape[:4]
     joint_part = np.zeros(n_j, np.int64) if parts is None else np.asarray(parts, np.int64)
@@ -119,7 +121,12 @@ def retimed(key_q, key_r, tgt_q, tgt_r, q, r, spread, parts=None):
         fq = np.concatenate([np.asarray(key_q, np.float64)[:, None], q[s], np.asarray(tgt_q, np.float64)[:, None]], 1)
         fr = np.concatenate([np.asarray(key_r, np.float64)[:, None], r[s], np.asarray(tgt_r, np.float64)[:, None]], 1)
         a = spreads[:, None, None] * amps[s][None, None]                                     # (B, 1, J)
-        tau = (t[None, :, None] + a * np.sin(np.pi * t)[None, :, None] / np.pi) * (length + 1)    # (B, L, J)
+        tau = t[None, :, None] + a * np.sin(np.pi * t)[None, :, None] / np.pi                      # (B, L, J)
+        if ease is not None:
+            room = np.maximum(0.95 - np.abs(a), 0.0)
+            e = np.clip(np.asarray(ease, np.float64)[s][:, None, None], -room, room)
+            tau = tau + e * np.sin(2 * np.pi * t)[None, :, None] / (2 * np.pi)
+        tau = tau * (length + 1)
         lo = np.clip(np.floor(tau).astype(int), 0, length)
         frac = tau - lo
         q0 = np.take_along_axis(fq, lo[..., None], 1)
