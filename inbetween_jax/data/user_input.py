@@ -93,8 +93,10 @@ def same_skeleton(skel, path: str, ref, ref_path: str) -> None:
     else:
         j = next((j for j, (a, b, pa, pb) in enumerate(zip(skel.names, ref.names, skel.parents, ref.parents))
                   if a != b or pa != pb), 0)
-        differs = (f"its joint {j} is {skel.names[j]!r} (parent {skel.parents[j]}) where the other keyframe's "
-                   f"file has {ref.names[j]!r} (parent {ref.parents[j]})")
+        def joint(sk):
+            parent = sk.names[sk.parents[j]] if sk.parents[j] >= 0 else None
+            return f"{sk.names[j]!r} (parent {parent!r})"
+        differs = f"its joint {j} is {joint(skel)} where the other keyframe's file has {joint(ref)}"
     raise UserError(f"{path}: {differs} ({ref_path}); both keyframes' files must be on one rig")
 
 
