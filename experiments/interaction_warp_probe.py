@@ -1,0 +1,66 @@
+"""The interaction model's sampled mode with bank windows warped by local-support offsets; not in the package
+(docs/results/interaction.md, "Why the samples' score stays low").
+
+    python experiments/interaction_warp_probe.py RUN_DIR --support M [interaction_samples.py options]
+
+The sampled mode blends each sample with one captured bank window warped onto the query's ends
+(``bank._warped_mean``): every joint channel gets the start offset fading linearly into the end offset over the
+whole gap (Witkin & Popovic 1995), so the captured pose changes everywhere by the two keyposes' difference.  With
+``--support M`` > 0 this script swaps that warp, for its own process, for a local-support one: the root moves
+rigidly along the same linear offset, and the other joints' offsets relative to the root (and the rotation
+channels' offsets) fade in and out within M frames of either end (raised cosine), so the captured window's own poses
+are kept between.  ``--support 0`` is the package's warp.  Then it runs ``experiments/interaction_samples.py``
+with the other arguments: the samples table on the validation take (classifier on the ``fit`` takes).
+"""
+import argparse
+import os
+import runpy
+import sys
+
+import numpy as np
+
+from inbetween_jax.models.interaction import bank
+
+
+def raised_cosine(gap: int, m: int) -> tuple:
+    """(gap,) weights of the start and end offsets: 1 at the keyframe side, 0 from ``m`` frames away."""
+    f = np.arange(1, gap + 1, dtype=np.float32)
+    start = np.where(f < m, 0.5 * (1 + np.cos(np.pi * f / m)), 0.0)
+    end = np.where(gap + 1 - f < m, 0.5 * (1 + np.cos(np.pi * (gap + 1 - f) / m)), 0.0)
+    return start.astype(np.float32), end.astype(np.float32)
+
+
+def local_warped_mean(m: int):
+    def warped_mean(near, context, keypose, gap: int) -> np.ndarray:
+        """near (B, k, 2, n + gap + 1, J, 9) -> (B, 2, gap, J, 9): the mean of the k windows, each warped."""
+        n = context.shape[2]
+        t = np.arange(1, gap + 1, dtype=np.float32) / (gap + 1)
+        ws, we = raised_cosine(gap, m)
+        sh = lambda v: v[None, None, :, None, None]                                  # noqa: E731
+        out = np.zeros(context.shape[:2] + (gap,) + context.shape[3:], np.float32)
+        for j in range(near.shape[1]):
+            c = near[:, j]
+            start = (context[:, :, -1] - c[:, :, n - 1])[:, :, None]                   # (B, 2, 1, J, 9)
+            end = (keypose - c[:, :, -1])[:, :, None]
+            off = np.zeros(c.shape[:2] + (gap,) + c.shape[3:], np.float32)
+            root = (1 - sh(t)) * start[..., :1, :3] + sh(t) * end[..., :1, :3]         # rigid, linear
+            off[..., :3] = (root + sh(ws) * (start[..., :3] - start[..., :1, :3])
+                            + sh(we) * (end[..., :3] - end[..., :1, :3]))
+            off[..., 3:] = sh(ws) * start[..., 3:] + sh(we) * end[..., 3:]
+            out += c[:, :, n:n + gap] + off
+        return out / near.shape[1]
+    return warped_mean
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], add_help=False)
+    p.add_argument("--support", type=int, default=0)
+    a, rest = p.parse_known_args()
+    if a.support > 0:
+        bank._warped_mean = local_warped_mean(a.support)        # this process only: the probe's variant
+    sys.argv = ["interaction_samples.py"] + rest
+    runpy.run_path(os.path.join(os.path.dirname(__file__), "interaction_samples.py"), run_name="__main__")
+
+
+if __name__ == "__main__":
+    main()
