@@ -1,7 +1,8 @@
 """The interaction model's sampled mode with bank windows warped by local-support offsets; not in the package
 (docs/results/interaction.md, "Why the samples' score stays low").
 
-    python experiments/interaction_warp_probe.py RUN_DIR --support M [interaction_samples.py options]
+    python experiments/interaction_warp_probe.py RUN_DIR [--support M] [--match-velocity M]
+        [interaction_samples.py options]
 
 The sampled mode blends each sample with one captured bank window warped onto the query's ends
 (``bank._warped_mean``): every joint channel gets the start offset fading linearly into the end offset over the
@@ -9,7 +10,9 @@ whole gap (Witkin & Popovic 1995), so the captured pose changes everywhere by th
 ``--support M`` > 0 this script swaps that warp, for its own process, for a local-support one: the root moves
 rigidly along the same linear offset, and the other joints' offsets relative to the root (and the rotation
 channels' offsets) fade in and out within M frames of either end (raised cosine), so the captured window's own poses
-are kept between.  ``--support 0`` is the package's warp.  Then it runs ``experiments/interaction_samples.py``
+are kept between.  ``--support 0`` is the package's warp.  With ``--match-velocity M`` > 0 each warped window also
+gets the context's last velocity at its first frame: the difference, times the frame number, fading out within M
+frames (raised cosine).  Then it runs ``experiments/interaction_samples.py``
 with the other arguments: the samples table on the validation take (classifier on the ``fit`` takes).
 """
 import argparse
@@ -52,12 +55,31 @@ def local_warped_mean(m: int):
     return warped_mean
 
 
+def velocity_matched(warp, m: int):
+    """``warp`` plus a correction that gives each warped window the context's last velocity at the start:
+    ``delta * f * cos^2``-fade over ``m`` frames, delta = context velocity - the warped window's first step."""
+    def warped_mean(near, context, keypose, gap: int) -> np.ndarray:
+        f = np.arange(1, gap + 1, dtype=np.float32)
+        k = np.where(f < m, 0.5 * (1 + np.cos(np.pi * f / m)), 0.0).astype(np.float32) * f
+        v_ctx = context[:, :, -1] - context[:, :, -2]                                  # (B, 2, J, 9)
+        out = 0.0
+        for j in range(near.shape[1]):
+            one = warp(near[:, j:j + 1], context, keypose, gap)
+            delta = v_ctx - (one[:, :, 0] - context[:, :, -1])
+            out = out + one + delta[:, :, None] * k[None, None, :, None, None]
+        return out / near.shape[1]
+    return warped_mean
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], add_help=False)
     p.add_argument("--support", type=int, default=0)
+    p.add_argument("--match-velocity", type=int, default=0, metavar="M")
     a, rest = p.parse_known_args()
     if a.support > 0:
         bank._warped_mean = local_warped_mean(a.support)        # this process only: the probe's variant
+    if a.match_velocity > 0:
+        bank._warped_mean = velocity_matched(bank._warped_mean, a.match_velocity)
     sys.argv = ["interaction_samples.py"] + rest
     runpy.run_path(os.path.join(os.path.dirname(__file__), "interaction_samples.py"), run_name="__main__")
 
