@@ -55,6 +55,31 @@ def local_warped_mean(m: int):
     return warped_mean
 
 
+def pair_warped_mean(m: int):
+    """Both dancers move rigidly by one shared linear offset (the mean of their roots' start and end offsets), so
+    the captured pair keeps its relative placement between the ends; each joint's offset from that (and the
+    rotation channels') fades in and out within ``m`` frames of either end."""
+    def warped_mean(near, context, keypose, gap: int) -> np.ndarray:
+        n = context.shape[2]
+        t = np.arange(1, gap + 1, dtype=np.float32) / (gap + 1)
+        ws, we = raised_cosine(gap, m)
+        sh = lambda v: v[None, None, :, None, None]                                  # noqa: E731
+        out = np.zeros(context.shape[:2] + (gap,) + context.shape[3:], np.float32)
+        for j in range(near.shape[1]):
+            c = near[:, j]
+            start = (context[:, :, -1] - c[:, :, n - 1])[:, :, None]                   # (B, 2, 1, J, 9)
+            end = (keypose - c[:, :, -1])[:, :, None]
+            s0 = start[..., :1, :3].mean(1, keepdims=True)                             # (B, 1, 1, 1, 3) shared
+            e0 = end[..., :1, :3].mean(1, keepdims=True)
+            off = np.zeros(c.shape[:2] + (gap,) + c.shape[3:], np.float32)
+            off[..., :3] = ((1 - sh(t)) * s0 + sh(t) * e0 + sh(ws) * (start[..., :3] - s0)
+                            + sh(we) * (end[..., :3] - e0))
+            off[..., 3:] = sh(ws) * start[..., 3:] + sh(we) * end[..., 3:]
+            out += c[:, :, n:n + gap] + off
+        return out / near.shape[1]
+    return warped_mean
+
+
 def velocity_matched(warp, m: int):
     """``warp`` plus a correction that gives each warped window the context's last velocity at the start:
     ``delta * f * cos^2``-fade over ``m`` frames, delta = context velocity - the warped window's first step."""
@@ -75,9 +100,12 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], add_help=False)
     p.add_argument("--support", type=int, default=0)
     p.add_argument("--match-velocity", type=int, default=0, metavar="M")
+    p.add_argument("--pair", type=int, default=0, metavar="M")
     a, rest = p.parse_known_args()
     if a.support > 0:
         bank._warped_mean = local_warped_mean(a.support)        # this process only: the probe's variant
+    if a.pair > 0:
+        bank._warped_mean = pair_warped_mean(a.pair)
     if a.match_velocity > 0:
         bank._warped_mean = velocity_matched(bank._warped_mean, a.match_velocity)
     sys.argv = ["interaction_samples.py"] + rest
