@@ -1,7 +1,7 @@
 """The interaction model's sampled mode with bank windows warped by local-support offsets; not in the package
 (docs/results/interaction.md, "Why the samples' score stays low").
 
-    python experiments/interaction_warp_probe.py RUN_DIR [--support M] [--match-velocity M]
+    python experiments/interaction_warp_probe.py RUN_DIR [--support M | --pair M] [--match-velocity M]
         [interaction_samples.py options]
 
 The sampled mode blends each sample with one captured bank window warped onto the query's ends
@@ -12,7 +12,9 @@ rigidly along the same linear offset, and the other joints' offsets relative to 
 channels' offsets) fade in and out within M frames of either end (raised cosine), so the captured window's own poses
 are kept between.  ``--support 0`` is the package's warp.  With ``--match-velocity M`` > 0 each warped window also
 gets the context's last velocity at its first frame: the difference, times the frame number, fading out within M
-frames (raised cosine).  Then it runs ``experiments/interaction_samples.py``
+frames (raised cosine).  ``--pair M`` > 0: both dancers move by one shared rigid offset (the mean of their roots'),
+so the captured pair keeps its relative placement, each joint's own offset fading within M frames of the ends.
+Then it runs ``experiments/interaction_samples.py``
 with the other arguments: the samples table on the validation take (classifier on the ``fit`` takes).
 """
 import argparse
@@ -33,7 +35,10 @@ def raised_cosine(gap: int, m: int) -> tuple:
     return start.astype(np.float32), end.astype(np.float32)
 
 
-def local_warped_mean(m: int):
+def local_warped_mean(m: int, shared: bool = False):
+    """Each dancer moves rigidly along its root's linear offset (``shared``: both dancers along the mean of their
+    roots', so the captured pair keeps its relative placement); each joint's offset from that, and the rotation
+    channels' offsets, fade in and out within ``m`` frames of either end."""
     def warped_mean(near, context, keypose, gap: int) -> np.ndarray:
         """near (B, k, 2, n + gap + 1, J, 9) -> (B, 2, gap, J, 9): the mean of the k windows, each warped."""
         n = context.shape[2]
@@ -45,32 +50,9 @@ def local_warped_mean(m: int):
             c = near[:, j]
             start = (context[:, :, -1] - c[:, :, n - 1])[:, :, None]                   # (B, 2, 1, J, 9)
             end = (keypose - c[:, :, -1])[:, :, None]
-            off = np.zeros(c.shape[:2] + (gap,) + c.shape[3:], np.float32)
-            root = (1 - sh(t)) * start[..., :1, :3] + sh(t) * end[..., :1, :3]         # rigid, linear
-            off[..., :3] = (root + sh(ws) * (start[..., :3] - start[..., :1, :3])
-                            + sh(we) * (end[..., :3] - end[..., :1, :3]))
-            off[..., 3:] = sh(ws) * start[..., 3:] + sh(we) * end[..., 3:]
-            out += c[:, :, n:n + gap] + off
-        return out / near.shape[1]
-    return warped_mean
-
-
-def pair_warped_mean(m: int):
-    """Both dancers move rigidly by one shared linear offset (the mean of their roots' start and end offsets), so
-    the captured pair keeps its relative placement between the ends; each joint's offset from that (and the
-    rotation channels') fades in and out within ``m`` frames of either end."""
-    def warped_mean(near, context, keypose, gap: int) -> np.ndarray:
-        n = context.shape[2]
-        t = np.arange(1, gap + 1, dtype=np.float32) / (gap + 1)
-        ws, we = raised_cosine(gap, m)
-        sh = lambda v: v[None, None, :, None, None]                                  # noqa: E731
-        out = np.zeros(context.shape[:2] + (gap,) + context.shape[3:], np.float32)
-        for j in range(near.shape[1]):
-            c = near[:, j]
-            start = (context[:, :, -1] - c[:, :, n - 1])[:, :, None]                   # (B, 2, 1, J, 9)
-            end = (keypose - c[:, :, -1])[:, :, None]
-            s0 = start[..., :1, :3].mean(1, keepdims=True)                             # (B, 1, 1, 1, 3) shared
-            e0 = end[..., :1, :3].mean(1, keepdims=True)
+            s0, e0 = start[..., :1, :3], end[..., :1, :3]                              # the roots' offsets
+            if shared:
+                s0, e0 = s0.mean(1, keepdims=True), e0.mean(1, keepdims=True)
             off = np.zeros(c.shape[:2] + (gap,) + c.shape[3:], np.float32)
             off[..., :3] = ((1 - sh(t)) * s0 + sh(t) * e0 + sh(ws) * (start[..., :3] - s0)
                             + sh(we) * (end[..., :3] - e0))
@@ -105,7 +87,7 @@ def main() -> None:
     if a.support > 0:
         bank._warped_mean = local_warped_mean(a.support)        # this process only: the probe's variant
     if a.pair > 0:
-        bank._warped_mean = pair_warped_mean(a.pair)
+        bank._warped_mean = local_warped_mean(a.pair, shared=True)
     if a.match_velocity > 0:
         bank._warped_mean = velocity_matched(bank._warped_mean, a.match_velocity)
     sys.argv = ["interaction_samples.py"] + rest
