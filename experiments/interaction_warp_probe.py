@@ -66,8 +66,7 @@ def velocity_matched(warp, m: int):
     """``warp`` plus a correction that gives each warped window the context's last velocity at the start:
     ``delta * f * cos^2``-fade over ``m`` frames, delta = context velocity - the warped window's first step."""
     def warped_mean(near, context, keypose, gap: int) -> np.ndarray:
-        f = np.arange(1, gap + 1, dtype=np.float32)
-        k = np.where(f < m, 0.5 * (1 + np.cos(np.pi * f / m)), 0.0).astype(np.float32) * f
+        k = raised_cosine(gap, m)[0] * np.arange(1, gap + 1, dtype=np.float32)
         v_ctx = context[:, :, -1] - context[:, :, -2]                                  # (B, 2, J, 9)
         out = 0.0
         for j in range(near.shape[1]):

@@ -25,7 +25,7 @@ import argparse
 import numpy as np
 
 from inbetween_jax.data import load_dataset
-from inbetween_jax.evaluation.samples import _positions, reach_share, step_lengths
+from inbetween_jax.evaluation.samples import reach_share, step_lengths, window_positions
 from inbetween_jax.models.scvae import infer
 from inbetween_jax.models.scvae.context import in_clip
 from inbetween_jax.models.scvae.gate import gate_windows, slerp_base
@@ -61,7 +61,7 @@ def main() -> None:
     print("| frames | fill | reach (last step <= 2x the fill's median) | last / capture's last: median (p10-p90) "
           "| last / previous: p90 / max |")
     print("|---|---|---|---|---|")
-    pos = _positions(wins, wins.local_quats, wins.root_pos)                             # (B, T, J, 3)
+    pos = window_positions(wins, wins.local_quats, wins.root_pos)                             # (B, T, J, 3)
     for n in [int(x) for x in a.frames.split(",")]:
         k0, k1 = N_PAST - 1, N_PAST + n
         key, end = pos[:, k0:k0 + 1], pos[:, k1:k1 + 1]
@@ -77,7 +77,7 @@ def main() -> None:
         fills = {"capture": pos[:, k0:k1 + 1]}
         for name, (fq, fr) in (("Slerp", (sq, sr)), ("Hermite path (the base inside a clip)", (hq[0], hr[0])),
                                ("shipped S-CVAE inside a clip", (cq[0], cr[0]))):
-            fills[name] = np.concatenate([key, _positions(wins, fq, fr), end], 1)
+            fills[name] = np.concatenate([key, window_positions(wins, fq, fr), end], 1)
         for name, full in fills.items():
             print(f"| {n} | {name} | {summary(full, truth)} |")
 

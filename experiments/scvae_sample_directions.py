@@ -23,8 +23,8 @@ import numpy as np
 
 from inbetween_jax.baselines import interpolate_transition
 from inbetween_jax.data import l2p_stats, load_dataset
-from inbetween_jax.evaluation.samples import per_window_l2p
-from inbetween_jax.geometry import forward_kinematics, local_positions
+from inbetween_jax.evaluation.samples import per_window_l2p, window_positions
+from inbetween_jax.geometry import forward_kinematics
 from inbetween_jax.geometry.quaternion import (quat_from_axis_angle, quat_inv, quat_mul, quat_rotate,
                                                quat_to_axis_angle)
 from inbetween_jax.models.scvae import infer
@@ -49,13 +49,6 @@ def from_rotvec(v):
 def yaw_quat(yaw):
     """Turns about +Y by ``yaw`` (N,) radians: (N, 4)."""
     return quat_from_axis_angle(np.broadcast_to([0.0, 1.0, 0.0], np.shape(yaw) + (3,)), np.asarray(yaw, np.float64))
-
-
-def positions(windows, quats, root):
-    """Global joint positions (..., J, 3) of local quaternions and root positions on the windows' skeleton."""
-    return forward_kinematics(np.asarray(quats, np.float64),
-                              local_positions(np.asarray(root, np.float64), windows.skeleton.offsets),
-                              windows.parents)[1]
 
 
 def levers(skel) -> np.ndarray:
@@ -106,8 +99,8 @@ def main():
         return quat_mul(q, from_rotvec(d)), r + dr
 
     def errors(q, r, n):
-        truth = positions(val, val.local_quats[:, N_PAST:N_PAST + n], val.root_pos[:, N_PAST:N_PAST + n])
-        pos = np.stack([positions(val, qs, rs) for qs, rs in zip(q, r)])
+        truth = window_positions(val, val.local_quats[:, N_PAST:N_PAST + n], val.root_pos[:, N_PAST:N_PAST + n])
+        pos = np.stack([window_positions(val, qs, rs) for qs, rs in zip(q, r)])
         return np.linalg.norm(pos - truth, axis=-1).mean((-1, -2)), per_window_l2p(pos, truth, x_mean, x_std)
 
     print("| frames | samples | mean of 10 vs the fill | best of 10 / Slerp | where the gate falls back: mean vs fill "

@@ -26,24 +26,15 @@ import numpy as np
 from inbetween_jax import shipped
 from inbetween_jax.baselines import interpolate_transition
 from inbetween_jax.data import l2p_stats, load_dataset
-from inbetween_jax.evaluation.samples import per_window_l2p
-from inbetween_jax.geometry import forward_kinematics, local_positions
+from inbetween_jax.evaluation.samples import per_window_l2p, window_positions
 from inbetween_jax.models.scvae import infer
 from inbetween_jax.models.scvae.bank import bank_sample_blend, sample_timing_spread, sample_weight
-from inbetween_jax.models.scvae.gate import gate_blend, keyframe_context, slerp_base
 from inbetween_jax.models.scvae.timing import body_parts, retimed
 from inbetween_jax.train.run import load_run
 
 N_PAST, S = 10, 10
 PATTERNS = {"all-": lambda s: -np.ones(len(s)), "all+": lambda s: np.ones(len(s)),
             "alt": lambda s: np.where(s % 2 == 1, -1.0, 1.0), "half-": lambda s: np.where(s % 2 == 1, -1.0, 0.0)}
-
-
-def positions(windows, quats, root):
-    """Global joint positions (..., J, 3) of local quaternions and root positions on the windows' skeleton."""
-    return forward_kinematics(np.asarray(quats, np.float64),
-                              local_positions(np.asarray(root, np.float64), windows.skeleton.offsets),
-                              windows.parents)[1]
 
 
 def main():
@@ -59,6 +50,8 @@ def main():
     run = dataclasses.replace(run, config=shipped.config_with_overrides(run.model, run.config, a.set))
     tr = infer.load(run)
     cfg = tr.cfg.model
+    if not (cfg.ood_gate and tr.gate is not None):
+        p.error("the run needs its out-of-distribution gate: a calibrated folder and --set model.ood_gate=true")
     fa = np.asarray(tr.extra.get("forward_axis") or tr.skeleton.forward_axis(), np.float64)
     val = load_dataset("cmu", a.split, window=65, offset=20)
     x_mean, x_std = l2p_stats(val.global_pose()[1])
@@ -70,20 +63,16 @@ def main():
     for n in (10, 30, 50):
         k = (val.local_quats[:, N_PAST - 1], val.root_pos[:, N_PAST - 1], val.local_quats[:, N_PAST + n],
              val.root_pos[:, N_PAST + n])
-        net = infer.sample_transitions(cfg, tr.state, val, N_PAST, n, S, bank=tr.bank, sampled=False)
-        w = np.clip(tr.gate[1].weight(tr.gate[0].score(keyframe_context(*k, n, val.skeleton, fa))), 0.0, 1.0)
-        base_q, base_r = slerp_base(*k, n)
-        q, r = np.empty(net["q"].shape), np.empty(net["r"].shape)
-        for i in range(S):
-            qi, ri = gate_blend(net["q"][i:i + 1], net["r"][i:i + 1], base_q, base_r, w)
-            q[i], r[i] = qi[0], ri[0]
-        q, r = bank_sample_blend(tr.bank, *k, q, r, sample_weight(cfg, w), 0.0)       # the bank's pull, not retimed
+        gated = infer.sample_transitions(cfg, tr.state, val, N_PAST, n, S, bank=tr.bank, gate=tr.gate,
+                                         forward_axis=fa, sampled=False)                 # the fill, gated
+        w = np.clip(gated["gate_weight"], 0.0, 1.0)
+        q, r = bank_sample_blend(tr.bank, *k, gated["q"], gated["r"], sample_weight(cfg, w), 0.0)   # not retimed
         sq, sr = interpolate_transition(val.local_quats.astype(np.float64), val.root_pos.astype(np.float64),
                                         N_PAST, n)
-        truth = positions(val, val.local_quats[:, N_PAST:N_PAST + n], val.root_pos[:, N_PAST:N_PAST + n])
+        truth = window_positions(val, val.local_quats[:, N_PAST:N_PAST + n], val.root_pos[:, N_PAST:N_PAST + n])
 
         def errors(qs, rs):
-            pos = np.stack([positions(val, qi, ri) for qi, ri in zip(qs, rs)])
+            pos = np.stack([window_positions(val, qi, ri) for qi, ri in zip(qs, rs)])
             return np.linalg.norm(pos - truth, axis=-1).mean((-1, -2)), per_window_l2p(pos, truth, x_mean, x_std)
         slerp_cm = errors(sq[None], sr[None])[0][0]
         fb = w < 0.5

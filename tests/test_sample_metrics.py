@@ -30,8 +30,8 @@ def test_pairwise_joint_distance_is_the_mean_over_ordered_pairs():
 def test_per_window_l2p_averages_to_the_official_l2p(windows):
     (w, (xm, xs)) = windows
     q, r = interpolate_transition(w.local_quats.astype(np.float64), w.root_pos.astype(np.float64), N_PAST, N)
-    pos = S._positions(w, q, r)
-    gt = S._positions(w, w.local_quats[:, N_PAST:N_PAST + N], w.root_pos[:, N_PAST:N_PAST + N])
+    pos = S.window_positions(w, q, r)
+    gt = S.window_positions(w, w.local_quats[:, N_PAST:N_PAST + N], w.root_pos[:, N_PAST:N_PAST + N])
     per = S.per_window_l2p(pos, gt, xm, xs)
     assert per.shape == (len(w),)
     np.testing.assert_allclose(per.mean(), float(metrics.l2p(pos, gt, xm, xs)), rtol=1e-5)
@@ -52,14 +52,14 @@ def test_sample_metrics_of_slerp_and_of_spread_samples(windows):
     assert one["APD"] == 0.0 and one["pairwise_cm"] == 0.0
     assert one["best_L2P"] == pytest.approx(one["mean_L2P"]) and one["reach"] == 1.0
     lo, hi = N_PAST - 1, N_PAST + N + 1              # the capture's own share, by the rule computed here
-    cap = np.linalg.norm(np.diff(S._positions(w, w.local_quats[:, lo:hi], w.root_pos[:, lo:hi]), axis=1),
+    cap = np.linalg.norm(np.diff(S.window_positions(w, w.local_quats[:, lo:hi], w.root_pos[:, lo:hi]), axis=1),
                          axis=-1).mean(-1)                                                    # (B, N + 1) steps
     assert one["reach_truth"] == pytest.approx(np.mean(cap[:, -1] <= 2.0 * np.median(cap[:, 1:-1], -1)))
     shifts = np.array([-8.0, 0.0, 8.0])[:, None, None, None] * np.array([1.0, 0.0, 0.0])   # three root offsets (cm)
     qs, rs = np.broadcast_to(q, (3,) + q.shape), r[None] + shifts
     many = S.sample_metrics(w, N_PAST, N, qs, rs, xm, xs)
     np.testing.assert_allclose(many["pairwise_cm"], (8 + 16 + 8) * 2 / 6, rtol=1e-6)   # |i - j| x 8 cm
-    np.testing.assert_allclose(many["APD"], float(metrics.apd(np.stack([S._positions(w, a, b) for a, b in
+    np.testing.assert_allclose(many["APD"], float(metrics.apd(np.stack([S.window_positions(w, a, b) for a, b in
                                                                         zip(qs, rs)]), scale=0.01)), rtol=1e-6)
     assert many["best_L2P"] <= one["mean_L2P"] + 1e-9 <= many["mean_L2P"]
     assert many["best_cm"] < many["mean_cm"]

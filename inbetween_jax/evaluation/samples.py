@@ -30,13 +30,13 @@ from inbetween_jax.evaluation.lafan1 import _fk
 from inbetween_jax.metrics.steps import lift_offs
 
 __all__ = ["SNAP_FACTOR", "sample_metrics", "pairwise_joint_distance", "per_window_l2p", "reach_share", "step_lengths",
-           "sample_spread"]
+           "sample_spread", "window_positions"]
 
 SNAP_FACTOR = 2.0
 CM_TO_M = 0.01
 
 
-def _positions(windows, quats, root) -> np.ndarray:
+def window_positions(windows, quats, root) -> np.ndarray:
     """Global joint positions (..., J, 3) of local quaternions and root positions on the windows' skeleton."""
     return _fk(windows, quats, root)[1]
 
@@ -86,9 +86,9 @@ def sample_metrics(windows, n_past: int, n_trans: int, q, r, x_mean, x_std) -> d
     if not (np.all(np.isfinite(q)) and np.all(np.isfinite(r))):
         raise FloatingPointError("samples contain NaN or inf; refusing to score them")
     lo, hi = n_past, n_past + n_trans
-    truth = _positions(windows, windows.local_quats[:, lo - 1:hi + 1], windows.root_pos[:, lo - 1:hi + 1])
+    truth = window_positions(windows, windows.local_quats[:, lo - 1:hi + 1], windows.root_pos[:, lo - 1:hi + 1])
     key, gt, tgt = truth[:, :1], truth[:, 1:-1], truth[:, -1:]       # keyframe, transition (B, L, J, 3), target
-    pos = np.stack([_positions(windows, qs, rs) for qs, rs in zip(q, r)])                     # (S, B, L, J, 3)
+    pos = np.stack([window_positions(windows, qs, rs) for qs, rs in zip(q, r)])                     # (S, B, L, J, 3)
     s = pos.shape[0]
     full = np.concatenate([np.broadcast_to(key, (s,) + key.shape), pos, np.broadcast_to(tgt, (s,) + tgt.shape)], 2)
     l2p = per_window_l2p(pos, gt, x_mean, x_std)                                              # (S, B)
