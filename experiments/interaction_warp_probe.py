@@ -79,9 +79,10 @@ def velocity_matched(warp, m: int):
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], add_help=False)
-    p.add_argument("--support", type=int, default=0)
+    warp = p.add_mutually_exclusive_group()
+    warp.add_argument("--support", type=int, default=0, metavar="M")
+    warp.add_argument("--pair", type=int, default=0, metavar="M")
     p.add_argument("--match-velocity", type=int, default=0, metavar="M")
-    p.add_argument("--pair", type=int, default=0, metavar="M")
     a, rest = p.parse_known_args()
     if a.support > 0:
         bank._warped_mean = local_warped_mean(a.support)        # this process only: the probe's variant
