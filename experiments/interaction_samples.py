@@ -41,12 +41,13 @@ def main() -> None:
     stats = proto.l2p_stats(train, d.pos_scale)
     print(f"{'test takes' if a.test else 'validation take'}: {', '.join(x.name for x in judged)}; "
           f"{a.samples} samples; classifier accuracy {cls[2]:.2f}")
-    print("| setting | frames | mean-of-N L2P / interp | best-of-N / interp | APD (m) | pairwise (cm) | "
-          "score / ground truth's |\n|---|---|---|---|---|---|---|")
+    print("| setting | frames | fill (sample 0) L2P / interp | mean-of-N L2P / interp | best-of-N / interp | APD (m) "
+          "| pairwise (cm) | score / ground truth's |\n|---|---|---|---|---|---|---|---|")
     for text in [""] + a.tries:
         run = dataclasses.replace(tr, cfg=dataclasses.replace(tr.cfg, model=parse_try(text, tr.cfg.model)))
         for r in sample_table(_model_method(run), windows, stats, cls[:2], a.samples):
-            print(f"| {text or 'as configured'} | {r['frames']} | {r['mean_l2p'] / r['interp_l2p']:.3f} | "
+            print(f"| {text or 'as configured'} | {r['frames']} | {r['fill_l2p'] / r['interp_l2p']:.3f} | "
+                  f"{r['mean_l2p'] / r['interp_l2p']:.3f} | "
                   f"{r['best_l2p'] / r['interp_l2p']:.3f} | {r['apd_m']:.3f} | {r['pairwise_cm']:.2f} | "
                   f"{r['score'] / r['score_gt']:.3f} |", flush=True)
 

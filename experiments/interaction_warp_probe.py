@@ -2,7 +2,7 @@
 (docs/results/interaction.md, "Why the samples' score stays low").
 
     python experiments/interaction_warp_probe.py RUN_DIR [--support M | --pair M] [--match-velocity M]
-        [interaction_samples.py options]
+        [--foot-clock feet|legs] [interaction_samples.py options]
 
 The sampled mode blends each sample with one captured bank window warped onto the query's ends
 (``bank._warped_mean``): every joint channel gets the start offset fading linearly into the end offset over the
@@ -14,7 +14,8 @@ are kept between.  ``--support 0`` is the package's warp.  With ``--match-veloci
 gets the context's last velocity at its first frame: the difference, times the frame number, fading out within M
 frames (raised cosine).  ``--pair M`` > 0: both dancers move by one shared rigid offset (the mean of their roots'),
 so the captured pair keeps its relative placement, each joint's own offset fading within M frames of the ends.
-Then it runs ``experiments/interaction_samples.py``
+``--foot-clock feet`` (``legs``: with the shins) moves each foot's share of the offset as the captured foot travels,
+not linearly in time, so a planted foot does not slide (:func:`foot_clock`).  Then it runs ``experiments/interaction_samples.py``
 with the other arguments: the samples table on the validation take (classifier on the ``fit`` takes).
 """
 import argparse
@@ -77,12 +78,39 @@ def velocity_matched(warp, m: int):
     return warped_mean
 
 
+def foot_clock(warp, chains):
+    """``warp`` with the offsets of the joints in ``chains`` ((foot, [joints that follow it]), ...) re-timed: their
+    share of the start-to-end offset grows with the foot's own horizontal travel in the captured window instead of
+    linearly in time, so a planted foot stays planted (the linear warp slides the whole body over the floor).  A
+    foot that travels less than 1 cm over the gap keeps the linear clock."""
+    def warped_mean(near, context, keypose, gap: int) -> np.ndarray:
+        n = context.shape[2]
+        t = np.arange(1, gap + 1, dtype=np.float32) / (gap + 1)
+        out = 0.0
+        for j in range(near.shape[1]):
+            c = near[:, j]
+            one = warp(near[:, j:j + 1], context, keypose, gap)                        # (B, 2, gap, J, 9)
+            start = (context[:, :, -1] - c[:, :, n - 1])[..., :3]                      # (B, 2, J, 3)
+            end = (keypose - c[:, :, -1])[..., :3]
+            for foot, joints in chains:
+                path = c[:, :, n - 1:, foot, :3][..., [0, 2]]                           # (B, 2, gap + 2, 2)
+                step = np.linalg.norm(np.diff(path, axis=2), axis=-1)                  # (B, 2, gap + 1)
+                total = step.sum(-1, keepdims=True)
+                tau = np.where(total > 0.01, np.cumsum(step, -1)[..., :gap] / np.maximum(total, 1e-9), t)
+                for q in joints:   # swap the linear share of the offset for the foot's clock
+                    one[..., q, :3] += ((tau - t)[..., None] * (end[:, :, None, q] - start[:, :, None, q]))
+            out = out + one
+        return out / near.shape[1]
+    return warped_mean
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], add_help=False)
     warp = p.add_mutually_exclusive_group()
     warp.add_argument("--support", type=int, default=0, metavar="M")
     warp.add_argument("--pair", type=int, default=0, metavar="M")
     p.add_argument("--match-velocity", type=int, default=0, metavar="M")
+    p.add_argument("--foot-clock", choices=("feet", "legs"), default=None)
     a, rest = p.parse_known_args()
     if a.support > 0:
         bank._warped_mean = local_warped_mean(a.support)        # this process only: the probe's variant
@@ -90,6 +118,13 @@ def main() -> None:
         bank._warped_mean = local_warped_mean(a.pair, shared=True)
     if a.match_velocity > 0:
         bank._warped_mean = velocity_matched(bank._warped_mean, a.match_velocity)
+    if a.foot_clock:
+        from inbetween_jax.models.interaction.infer import load
+        from inbetween_jax.train.run import load_run
+        names = list(load(load_run(rest[0])).skeleton.names)
+        chains = [(names.index(f"{s}Foot"), [names.index(f"{s}Foot")] + ([names.index(f"{s}Shin")]
+                   if a.foot_clock == "legs" else [])) for s in "rl"]
+        bank._warped_mean = foot_clock(bank._warped_mean, chains)
     sys.argv = ["interaction_samples.py"] + rest
     runpy.run_path(os.path.join(os.path.dirname(__file__), "interaction_samples.py"), run_name="__main__")
 

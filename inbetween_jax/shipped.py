@@ -30,8 +30,8 @@ ENV = "INBETWEEN_WEIGHTS_DIR"
 # Switches that only change inference (the trained parameters are the same either way): ``export_run(inference=)``.
 INFERENCE_SWITCHES = {"interaction": ("model.refiner", "model.latent_scale", "model.bank_k", "model.bank_weight",
                                       "model.texture_sigma", "model.texture_gain", "model.bank_guessed", "model.ease_frames",
-                                      "model.ood_gate", "model.bank_sample_weight",
-                                      "model.departure_cap"),
+                                      "model.ood_gate", "model.bank_sample_weight", "model.bank_pair_weight",
+                                      "model.bank_sample_gated", "model.departure_cap"),
                       "scvae": ("model.search", "model.bank_k", "model.bank_weight", "model.bank_tau", "model.ood_gate",
                                 "model.motion_temperature", "model.motion_spread", "model.bank_sample_weight",
                                 "model.bank_sample_gated", "model.context_base", "model.context_damping",

@@ -153,7 +153,9 @@ def test_infill_preview(runs, tmp_path, capsys, monkeypatch):
              "--b", f"{CLIP_B}:30", "--key-a", f"{CLIP_A}:60", "--key-b", f"{CLIP_B}:70", "--frames", INTER_FRAMES,
              "--samples", 2, "--out", out, "--gif"], capsys)                     # --gif implies --preview
     assert sorted(os.listdir(out)) == ["infill.json"] + [f"sample_0{i}{e}" for i in range(2) for e in (
-        ".gif", "_A.bvh", "_A_sheet.png", "_B.bvh", "_B_sheet.png", "_pair_sheet.png")]
+        ".gif", "_A.bvh", "_A_sheet.png", "_B.bvh", "_B_sheet.png", "_pair_sheet.png")] + [
+        "samples_sheet_A.png", "samples_sheet_B.png"]                           # each character's samples overlaid
+    assert black in _png_colours(out / "samples_sheet_B.png")
     assert {black, grey} <= _png_colours(out / "sample_01_B_sheet.png")
     assert {black, grey} <= _png_colours(out / "sample_01_pair_sheet.png")     # both characters in one picture
     with Image.open(out / "sample_00.gif") as im:

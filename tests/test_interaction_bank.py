@@ -109,6 +109,42 @@ def test_sampled_mode_gives_each_sample_its_own_captured_window(bank, pair_windo
     np.testing.assert_allclose(single[0], ref[0], atol=1e-6)
 
 
+def _window_rel(bank, i):
+    """Window i's keyframe-space maps (rel_R (1, 2, 3, 3), rel_t (1, 2, 3) in model units)."""
+    from inbetween_jax.models.interaction.features import keyframe_sample
+    take, s = bank._starts(N_IN, GAP)[i]
+    b = keyframe_sample(bank.takes[take], s, N_IN + GAP + 1, N_IN + GAP, bank.forward_axis)
+    return b["rel_R"][None].astype(np.float32), (b["rel_t"] * bank.pos_scale)[None].astype(np.float32)
+
+
+def test_pair_features_place_the_partner_and_steer_the_match(bank):
+    """``model.bank_pair_weight``: the pair features are the partner's floor distance and relative heading at the
+    keyframe (checked against the raw take); with weight 0 the match ignores them, with a large weight it picks the
+    window whose pair placement is nearest the query's (brute force)."""
+    from inbetween_jax.models.interaction.bank import _nearest, match_features
+    from inbetween_jax.models.interaction.features import facing_yaw
+    pairs = bank.pair_index(N_IN, GAP)
+    n = len(pairs)
+    for i in (0, n // 3, n - 1):
+        take, s = bank._starts(N_IN, GAP)[i]
+        key = bank.takes[take][:, s + N_IN + GAP, 0]                                  # (2, 9) roots, file units
+        floor = np.hypot(*(key[1, [0, 2]] - key[0, [0, 2]])) * bank.pos_scale
+        turn = np.subtract(*facing_yaw(key[::-1], bank.forward_axis))                 # B's heading minus A's
+        np.testing.assert_allclose(np.hypot(*pairs[i, :2]), floor, rtol=1e-4, atol=1e-6)
+        np.testing.assert_allclose([pairs[i, 2], abs(pairs[i, 3])], [np.cos(turn), abs(np.sin(turn))], atol=1e-4)
+    far = int(np.argmax(((pairs - pairs[5]) ** 2).sum(1)))                         # another pair placement
+    ctx, kp, win = _query(bank, 5)
+    rel = _window_rel(bank, far)
+    np.testing.assert_array_equal(_nearest(bank, ctx, kp, GAP, 1, rel, 0.0)[:, 0], win)
+    d2 = ((match_features(ctx, kp) - bank.index(N_IN, GAP)) ** 2).sum(1) + 1e6 * ((pairs - pairs[far]) ** 2).sum(1)
+    np.testing.assert_allclose(_nearest(bank, ctx, kp, GAP, 1, rel, 1e3)[:, 0], bank.gather(N_IN, GAP,
+                               [int(np.argmin(d2))]), atol=1e-6)
+    assert int(np.argmin(d2)) != 5
+    with pytest.raises(ValueError, match="rel_R"):
+        apply_bank(bank, dataclasses.replace(ModelConfig(), bank_k=1, bank_weight=0.5, bank_pair_weight=1.0),
+                   np.zeros((1, 1, 2, GAP) + ctx.shape[3:], np.float32), ctx, kp, np.full(1, GAP))
+
+
 def test_bank_file_round_trip_and_errors(bank, tmp_path):
     path = str(tmp_path / "bank.npz")
     bank.save(path)

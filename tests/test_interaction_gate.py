@@ -157,3 +157,8 @@ def test_departure_cap_bounds_how_far_the_fill_leaves_interpolation():
     np.testing.assert_allclose(out[1, over, ..., :3], mid, atol=1e-5)
     with pytest.raises(ValueError, match="coefficients"):
         gate_rollouts(open_gate, rollouts, ctx, kp, np.full(12, 30), cap=cap)
+    only_fill, _, w0 = gate_rollouts(open_gate, rollouts, ctx, kp, np.full(12, 30), cap=cap, coef=coef,
+                                     samples=False)               # model.bank_sample_gated=false
+    np.testing.assert_array_equal(only_fill[0], out[0])
+    np.testing.assert_array_equal(w0, weight)
+    np.testing.assert_array_equal(only_fill[1], rollouts[1])

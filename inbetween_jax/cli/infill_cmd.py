@@ -175,8 +175,12 @@ def run_infill(args) -> int:
                 files[f"{name}_{'ABCDEFGH'[c]}.bvh"] = bvh_writer(motion)
         if args.preview:
             add_previews(files, name, motions, generated, result.what, gif=args.gif)
-    if args.preview and len(result.samples) > 1 and all(len(m) == 1 for _, m, _ in result.samples):
-        add_samples_sheet(files, [m[0] for _, m, _ in result.samples], result.what)
+    if args.preview and len(result.samples) > 1:          # all samples overlaid: one sheet per character
+        chars = min(len(m) for _, m, _ in result.samples)
+        for c in range(chars):
+            name = "samples_sheet" if chars == 1 else f"samples_sheet_{'ABCDEFGH'[c]}"
+            add_samples_sheet(files, [m[c] for _, m, _ in result.samples], result.what, name,
+                              "" if chars == 1 else f"character {'ABCDEFGH'[c]}")
     files.update(result.extra_files)
     summary = dict(result.summary, model=args.model, checkpoint=run.run_dir, step=run.step, seed=args.seed,
                    weights="shipped" if run.weights else "checkpoint")

@@ -77,9 +77,11 @@ def json_writer(obj):
     return write
 
 
-def add_samples_sheet(files: dict, motions: list, what: str = "keyframes") -> None:
-    """Add ``samples_sheet.png``: every sample of one in-between overlaid frame by frame, one colour each
-    (:func:`inbetween_jax.viz_samples.samples_sheet`).  motions: one Motion per sample, the same frames."""
+def add_samples_sheet(files: dict, motions: list, what: str = "keyframes", name: str = "samples_sheet",
+                      who: str = "") -> None:
+    """Add ``name.png``: every sample of one in-between overlaid frame by frame, one colour each
+    (:func:`inbetween_jax.viz_samples.samples_sheet`).  motions: one Motion per sample, the same frames; who: the
+    character's name for the title (two-character in-betweens get one sheet per character)."""
     import numpy as np
 
     from inbetween_jax.data.features import detect_unit_scale
@@ -90,8 +92,8 @@ def add_samples_sheet(files: dict, motions: list, what: str = "keyframes") -> No
     pos = np.stack([motion_positions(m) * cm for m in motions])
     t = pos.shape[1]
     every = max(1, -(-t // 12))
-    title = f"{len(motions)} samples overlaid (one colour each), {what} black"
-    files["samples_sheet.png"] = lambda path: samples_sheet(pos, motions[0].skeleton.parents, path, every=every,
+    title = f"{who + ': ' if who else ''}{len(motions)} samples overlaid (one colour each), {what} black"
+    files[f"{name}.png"] = lambda path: samples_sheet(pos, motions[0].skeleton.parents, path, every=every,
                                                             keyframes=[0, t - 1], title=title)
 
 

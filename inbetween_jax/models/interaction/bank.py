@@ -7,9 +7,11 @@ weights folder, written by ``inbetween build-bank``); a query is a test window's
 each character in its keyframe space as :func:`~.features.keyframe_sample` builds them.
 
 * :func:`knn_inbetween` -- the ``k`` bank windows of the same gap length whose last context frames (positions
-  and velocity) and keyposes (positions), both characters, lie nearest to the query's; each is warped (Witkin &
-  Popovic 1995) to start at the query's last context frame and end at its keypose (the two end offsets blended
-  linearly over the gap) and the ``k`` are averaged.  :func:`apply_bank` blends that with the network's rollout
+  and velocity) and keyposes (positions), both characters, lie nearest to the query's (with
+  ``model.bank_pair_weight`` > 0 also the two characters' placement at the keyframe, :func:`pair_features`: each
+  character's features live in its own keyframe space and say nothing of where the partner stands); each is
+  warped (Witkin & Popovic 1995) to start at the query's last context frame and end at its keypose (the two end
+  offsets blended linearly over the gap) and the ``k`` are averaged.  :func:`apply_bank` blends that with the network's rollout
   (``bank_weight``).
 * :func:`arrival_gaps` -- the gap a rollout takes (the frames before the stop rule's threshold is first met), so
   that with a guessed gap (``model.bank_guessed``) the bank follows the network's timing, not the guess.
@@ -33,12 +35,13 @@ from inbetween_jax.metrics.foot import SKATING_HEIGHT_CM
 from inbetween_jax.models.interaction.features import keyframe_sample
 
 __all__ = ["BANK_FILE", "SWITCHES", "MATCH_FRAMES", "FADE", "MotionBank", "gaussian_lowpass", "match_features",
-           "knn_inbetween", "texture", "apply_bank", "arrival_gaps", "bank_enabled", "foot_indices",
+           "pair_features", "knn_inbetween", "texture", "apply_bank", "arrival_gaps", "bank_enabled", "foot_indices",
            "ease_into_keypose"]
 
 BANK_FILE = "bank.npz"
 SWITCHES = ("model.bank_k", "model.bank_weight", "model.texture_sigma", "model.texture_gain",
-            "model.bank_guessed", "model.bank_sample_weight")                # inference only
+            "model.bank_guessed", "model.bank_sample_weight", "model.bank_pair_weight",
+            "model.bank_sample_gated")                                                 # inference only
 MATCH_FRAMES = 3          # last context frames whose joint positions are matched
 VELOCITY_WEIGHT = 5.0     # weight of the last context frame's velocity (m / frame) in the match
 FADE = 4                  # texture fade-in / fade-out frames at either end of the gap
@@ -96,6 +99,13 @@ class MotionBank:
         """Match features (N, D) of every bank window of ``n_input`` context frames, ``gap`` frames and the
         keyframe (stride :attr:`stride`), cached for the :data:`CACHED_LENGTHS` gap lengths used last (about 5 MB
         each for the shipped bank); only the matched frames are transformed."""
+        return self._indexed(n_input, gap)[0]
+
+    def pair_index(self, n_input: int, gap: int) -> np.ndarray:
+        """:func:`pair_features` (N, 4) of the same windows as :meth:`index`, in its order."""
+        return self._indexed(n_input, gap)[1]
+
+    def _indexed(self, n_input: int, gap: int) -> tuple:
         key = (n_input, gap)
         if key in self._cache:
             self._cache[key] = self._cache.pop(key)                       # most recently used last
@@ -108,7 +118,9 @@ class MotionBank:
                      for i, s in starts]
             ctx = np.stack([p["x"] for p in parts]).astype(np.float32)
             kp = np.stack([p["keypose"] for p in parts]).astype(np.float32)
-            self._cache[key] = match_features(ctx * self._scale, kp * self._scale)
+            rel_t = np.stack([p["rel_t"] for p in parts]) * self.pos_scale
+            self._cache[key] = (match_features(ctx * self._scale, kp * self._scale),
+                                pair_features(np.stack([p["rel_R"] for p in parts]), rel_t))
         return self._cache[key]
 
     def gather(self, n_input: int, gap: int, idx) -> np.ndarray:
@@ -148,31 +160,49 @@ def match_features(context, keypose) -> np.ndarray:
     return np.concatenate([p.reshape(len(c), -1) for p in parts], 1)
 
 
-def _nearest(bank: MotionBank, context, keypose, gap: int, k: int) -> np.ndarray:
-    """-> the k nearest bank windows, nearest first: (B, k, 2, n_input + gap + 1, J, 9)."""
+def pair_features(rel_R, rel_t) -> np.ndarray:
+    """How the two characters stand at the keyframe: character B's keyframe-space origin in character A's keyframe
+    space (x, z; model units) and the cosine and sine of B's heading there.  rel_R (B, 2, 3, 3), rel_t (B, 2, 3):
+    the maps between the characters' keyframe spaces (:func:`~.features.keyframe_sample`) -> (B, 4)."""
+    R, t = np.asarray(rel_R, np.float32)[:, 1], np.asarray(rel_t, np.float32)[:, 1]
+    return np.concatenate([t[:, [0, 2]], R[:, 0, [0, 2]]], 1)
+
+
+def _nearest(bank: MotionBank, context, keypose, gap: int, k: int, rel=None, pair_weight: float = 0.0) -> np.ndarray:
+    """-> the k nearest bank windows, nearest first: (B, k, 2, n_input + gap + 1, J, 9).  With ``pair_weight`` > 0
+    the distance also counts ``pair_weight^2`` times the squared distance of :func:`pair_features` (``rel``: the
+    query's ``(rel_R, rel_t)``, model units)."""
     n = context.shape[2]
     feats = bank.index(n, gap)
     f = match_features(context, keypose)
     d2 = (f ** 2).sum(1)[:, None] + (feats ** 2).sum(1)[None] - 2.0 * f @ feats.T
+    if pair_weight > 0:
+        if rel is None:
+            raise ValueError("model.bank_pair_weight needs the query's rel_R and rel_t")
+        q, pb = pair_features(*rel), bank.pair_index(n, gap)
+        d2 = d2 + pair_weight ** 2 * ((q[:, None] - pb[None]) ** 2).sum(-1)
     k = min(k, len(feats))
     idx = np.argpartition(d2, k - 1, axis=1)[:, :k] if k < len(feats) else np.tile(np.arange(k), (len(f), 1))
     order = np.argsort(np.take_along_axis(d2, idx, 1), 1)
     return bank.gather(n, gap, np.take_along_axis(idx, order, 1))
 
 
-def knn_inbetween(bank: MotionBank, context, keypose, gap: int, k: int) -> np.ndarray:
+def knn_inbetween(bank: MotionBank, context, keypose, gap: int, k: int, rel=None,
+                  pair_weight: float = 0.0) -> np.ndarray:
     """Mean of the ``k`` nearest bank windows, each warped onto the query's last context frame and keypose.
 
-    context (B, 2, n_input, J, 9), keypose (B, 2, J, 9) in key space (model units) -> (B, 2, gap, J, 9)."""
+    context (B, 2, n_input, J, 9), keypose (B, 2, J, 9) in key space (model units); rel / pair_weight: as
+    :func:`_nearest` -> (B, 2, gap, J, 9)."""
     context, keypose = np.asarray(context, np.float32), np.asarray(keypose, np.float32)
-    return _warped_mean(_nearest(bank, context, keypose, gap, k), context, keypose, gap)
+    return _warped_mean(_nearest(bank, context, keypose, gap, k, rel, pair_weight), context, keypose, gap)
 
 
-def texture(bank: MotionBank, context, keypose, gap: int, sigma: float) -> np.ndarray:
+def texture(bank: MotionBank, context, keypose, gap: int, sigma: float, rel=None,
+            pair_weight: float = 0.0) -> np.ndarray:
     """The nearest bank window's high-frequency joint-position band over the gap, faded in and out:
     (B, 2, gap, J, 9), zero in the rotation channels."""
     context = np.asarray(context, np.float32)
-    nearest = _nearest(bank, context, np.asarray(keypose, np.float32), gap, 1)[:, 0]
+    nearest = _nearest(bank, context, np.asarray(keypose, np.float32), gap, 1, rel, pair_weight)[:, 0]
     return _faded_band(nearest, context.shape[2], gap, sigma)
 
 
@@ -232,7 +262,7 @@ def bank_enabled(model_cfg) -> bool:
             or model_cfg.bank_sample_weight > 0)
 
 
-def apply_bank(bank: MotionBank, model_cfg, frames, context, keypose, gaps, feet=()) -> np.ndarray:
+def apply_bank(bank: MotionBank, model_cfg, frames, context, keypose, gaps, feet=(), rel=None) -> np.ndarray:
     """Rollouts with the bank's in-between blended in and texture added over each window's gap.
 
     frames (S, B, 2, F, J, 9) rollouts in key space (model units, y up); context (B, 2, n_input, J, 9); keypose
@@ -242,7 +272,9 @@ def apply_bank(bank: MotionBank, model_cfg, frames, context, keypose, gaps, feet
     past a window's gap are left as they are.  With ``model.bank_sample_weight`` > 0 and S > 1 (the sampled
     mode), sample 0 is as above and sample s >= 1 blends in one bank window, the s-th nearest, warped, at that
     weight, with that window's texture on the rest (``texture_gain`` x (1 - weight)): the samples differ by real
-    captured motion.  -> (S, B, 2, F, J, 9)."""
+    captured motion.  rel: the query's ``(rel_R, rel_t)`` (B, 2, 3, 3) / (B, 2, 3), needed with
+    ``model.bank_pair_weight`` > 0 (the characters' placement at the keyframe joins the match).
+    -> (S, B, 2, F, J, 9)."""
     out = np.array(frames, np.float32)
     gaps = np.asarray(gaps).astype(int)
     w, k = float(model_cfg.bank_weight), int(model_cfg.bank_k)
@@ -256,7 +288,9 @@ def apply_bank(bank: MotionBank, model_cfg, frames, context, keypose, gaps, feet
         if n <= 0 or not (blend or textured or ws > 0):
             continue
         ctx, kp = context[sel], keypose[sel]
-        near = _nearest(bank, ctx, kp, int(g), max(k if blend else 1, out.shape[0] - 1 if ws > 0 else 0))
+        rel_sel = None if rel is None else tuple(np.asarray(r)[sel] for r in rel)
+        near = _nearest(bank, ctx, kp, int(g), max(k if blend else 1, out.shape[0] - 1 if ws > 0 else 0),
+                        rel_sel, float(model_cfg.bank_pair_weight))
         pre = out[:, sel, :, :n].copy() if ws > 0 else None       # the rollouts the sampled mode blends from
         if blend:
             mean = _warped_mean(near[:, :k], ctx, kp, int(g))[:, :, :n]

@@ -103,7 +103,7 @@ def _model_method(trained, use_refiner=None, gap="true", latent_scale=None, use_
         out = np.array(rolled(long, samples)(trained.params, ctx, b["keypose"], b["rel_R"], b["rel_t"], g, key))
         if gap == "true":            # the known gap: bank, then the last frames eased onto the keypose
             if banked:
-                out = apply_bank(trained.bank, cfg.model, out, ctx, b["keypose"], g, feet)
+                out = apply_bank(trained.bank, cfg.model, out, ctx, b["keypose"], g, feet, (b["rel_R"], b["rel_t"]))
             if trained.gate is not None and cfg.model.ood_gate:     # toward interpolation (.gate)
                 from inbetween_jax.models.interaction.gate import gate_rollouts
                 out = gate_rollouts(trained.gate, out, ctx, b["keypose"], g, **trained.gate_kwargs())[0]
@@ -115,7 +115,7 @@ def _model_method(trained, use_refiner=None, gap="true", latent_scale=None, use_
             arrive = arrival_gaps(out[s], b["keypose"], cfg.model.stop_threshold, cfg.data.pos_scale)
             ok = np.flatnonzero(arrive <= top)                      # longer than any bank window: network alone
             out[s:s + 1, ok] = apply_bank(trained.bank, blend_only, out[s:s + 1, ok], ctx[ok], b["keypose"][ok],
-                                          arrive[ok], feet)
+                                          arrive[ok], feet, (b["rel_R"][ok], b["rel_t"][ok]))
         return out[:, :, :, :steps * l]
     return method
 
@@ -132,7 +132,8 @@ def _bank_baselines(trained) -> dict:
         def method(b, steps, samples, key):
             L = b["x"].shape[2] - N_INPUT - 1
             return apply_bank(trained.bank, model_cfg, interpolation_method(b, steps, samples, key),
-                              b["x"][:, :, :N_INPUT], b["keypose"], np.full(len(b["x"]), L), feet)
+                              b["x"][:, :, :N_INPUT], b["keypose"], np.full(len(b["x"]), L), feet,
+                              (b["rel_R"], b["rel_t"]))
         return method
     if m.bank_k > 0 and m.bank_weight > 0:
         rows[f"Motion bank alone (mean of {m.bank_k} nearest, warped; no network)"] = (

@@ -152,8 +152,12 @@ class ModelConfig:
                                    # (:func:`.bank.ease_into_keypose`; 0: off, the paper; on in the shipped run)
     bank_sample_weight: float = 0.0  # inference, sampled mode (more than one sample): sample s >= 1 blends in the
                                    # s-th nearest bank window alone at this weight, with its texture (0: off)
+    bank_pair_weight: float = 0.0  # inference: the bank's match also counts how the two characters stand at the
+                                   # keyframe (:func:`.bank.pair_features`), at this weight (0: off)
     ood_gate: bool = False         # inference: blend toward per-character interpolation as the window's context
                                    # and keyposes leave the training takes (:mod:`.gate`; ood.npz in the run folder)
+    bank_sample_gated: bool = True  # inference, with the gate: samples s >= 1 get their window's gate weight too
+                                   # (False: only sample 0, the deterministic fill, is gated)
     remat: str = ""                # speed only (same losses): what the autoregression's backward pass keeps
     departure_cap: float = 0.0     # inference, with the gate: the fill departs from interpolation by at most this
                                    # many times interpolation's error as predicted from the context (:mod:`.gate`,

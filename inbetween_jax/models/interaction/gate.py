@@ -90,11 +90,13 @@ def departure_weight(cap: float, predicted_cm, away_cm) -> np.ndarray:
     return np.minimum(1.0, cap * np.asarray(predicted_cm, np.float64) / np.maximum(away, 1e-9))
 
 
-def gate_rollouts(gate, rollouts, context, keypose, gaps, cap: float = 0.0, coef=None, parts: dict | None = None):
+def gate_rollouts(gate, rollouts, context, keypose, gaps, cap: float = 0.0, coef=None, parts: dict | None = None,
+                  samples: bool = True):
     """The gate ((scorer, Gate)) on rollouts (S, B, 2, F, J, 9) of B windows with contexts (B, 2, n_input, J, 9),
     keyposes (B, 2, J, 9) and gaps (B,) (all one length).  With ``cap`` > 0 and the base-error coefficients
     ``coef``, the weight is also held to :func:`departure_weight` of sample 0 (every sample gets its window's
-    weight).  Returns (rollouts, score (B,), weight (B,)); ``parts`` (a dict, when given) receives
+    weight; with ``samples`` false (``model.bank_sample_gated``) only sample 0 is gated and samples s >= 1 are
+    returned as they came).  Returns (rollouts, score (B,), weight (B,)); ``parts`` (a dict, when given) receives
     ``speed_weight`` and ``departure_weight`` (B,)."""
     gaps = np.asarray(gaps).astype(int)
     if len(np.unique(gaps)) != 1:
@@ -110,4 +112,7 @@ def gate_rollouts(gate, rollouts, context, keypose, gaps, cap: float = 0.0, coef
                                   departure_cm(np.asarray(rollouts)[0], base))
     if parts is not None:
         parts.update(speed_weight=weight, departure_weight=capped)
-    return gate_blend(rollouts, base, weight * capped), score, weight * capped
+    out = gate_blend(rollouts, base, weight * capped)
+    if not samples:
+        out[1:] = np.asarray(rollouts, np.float32)[1:]
+    return out, score, weight * capped

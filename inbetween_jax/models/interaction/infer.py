@@ -48,8 +48,9 @@ class Trained:
     base_error: np.ndarray | None = None  # (4,) ood.npz's interpolation-error fit when ``model.departure_cap`` is on
 
     def gate_kwargs(self) -> dict:
-        """:func:`.gate.gate_rollouts`'s departure cap arguments for this run."""
-        return {"cap": self.cfg.model.departure_cap, "coef": self.base_error}
+        """:func:`.gate.gate_rollouts`'s departure cap and sample arguments for this run."""
+        m = self.cfg.model
+        return {"cap": m.departure_cap, "coef": self.base_error, "samples": m.bank_sample_gated}
 
 
 def load(run: Run, with_gate: bool = True) -> Trained:
@@ -128,7 +129,8 @@ def infill_features(trained: Trained, context, keyframes, frames: int, num_sampl
     out = fn(trained.params, b["x"], b["keypose"], b["rel_R"], b["rel_t"], jax.random.key(seed))
     if trained.bank is not None:
         feet = foot_indices(trained.skeleton)
-        out = apply_bank(trained.bank, cfg.model, out, b["x"], b["keypose"], [frames], feet)
+        out = apply_bank(trained.bank, cfg.model, out, b["x"], b["keypose"], [frames], feet,
+                         (b["rel_R"], b["rel_t"]))
     if trained.gate is not None and cfg.model.ood_gate:   # toward interpolation as the window leaves the training takes
         from inbetween_jax.models.interaction.gate import gate_rollouts
         parts = {}
