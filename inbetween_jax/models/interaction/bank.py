@@ -11,8 +11,8 @@ each character in its keyframe space as :func:`~.features.keyframe_sample` build
   ``model.bank_pair_weight`` > 0 also the two characters' placement at the keyframe, :func:`pair_features`: each
   character's features live in its own keyframe space and say nothing of where the partner stands); each is
   warped (Witkin & Popovic 1995) to start at the query's last context frame and end at its keypose (the two end
-  offsets blended linearly over the gap) and the ``k`` are averaged.  :func:`apply_bank` blends that with the network's rollout
-  (``bank_weight``).
+  offsets blended linearly over the gap) and the ``k`` are averaged.  :func:`apply_bank` blends that with the
+  network's rollout (``bank_weight``).
 * :func:`arrival_gaps` -- the gap a rollout takes (the frames before the stop rule's threshold is first met), so
   that with a guessed gap (``model.bank_guessed``) the bank follows the network's timing, not the guess.
 * :func:`texture` -- motion texturing (Pullen & Bregler 2002): the high-frequency band of the nearest window's
@@ -41,7 +41,7 @@ __all__ = ["BANK_FILE", "SWITCHES", "MATCH_FRAMES", "FADE", "MotionBank", "gauss
 BANK_FILE = "bank.npz"
 SWITCHES = ("model.bank_k", "model.bank_weight", "model.texture_sigma", "model.texture_gain",
             "model.bank_guessed", "model.bank_sample_weight", "model.bank_pair_weight",
-            "model.bank_sample_gated")                                                 # inference only
+            "model.bank_sample_gated")        # inference only; the last acts in .gate (samples s >= 1 ungated)
 MATCH_FRAMES = 3          # last context frames whose joint positions are matched
 VELOCITY_WEIGHT = 5.0     # weight of the last context frame's velocity (m / frame) in the match
 FADE = 4                  # texture fade-in / fade-out frames at either end of the gap
