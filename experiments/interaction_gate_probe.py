@@ -6,7 +6,8 @@ RUN_DIR must hold a calibrated gate (``inbetween calibrate-gate RUN_DIR``): its 
 validation window's error ratio to interpolation at each blend weight.  For each candidate score, per window: the
 Spearman correlation with the ratio of the learned fill alone, and the gate ``calibrate_gate`` chooses with it
 (mean / p90 / max of the gated ratios).  Candidates: the k-NN distance of the window's match features (the motion
-bank's, plus the gap) to the ``fit`` takes' windows; the joint speed at the last context frame (what ships); the
+bank's, plus the gap) to the ``fit`` takes' windows, also with the two dancers' placement at the keyframe
+(:func:`~inbetween_jax.models.interaction.bank.pair_features` at weight :data:`PAIR_WEIGHT`); the joint speed at the last context frame (what ships); the
 keypose's distance per frame; the spread of the ensemble's members relative to the network's departure from
 interpolation.
 """
@@ -17,6 +18,8 @@ import os
 
 import numpy as np
 
+PAIR_WEIGHT = 3.0         # the shipped model.bank_pair_weight
+
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -26,7 +29,7 @@ def main() -> None:
     import jax
     from scipy.stats import spearmanr
     from inbetween_jax.evaluation import interaction as proto
-    from inbetween_jax.models.interaction.bank import MotionBank, match_features
+    from inbetween_jax.models.interaction.bank import MotionBank, match_features, pair_features
     from inbetween_jax.models.interaction.bench import _model_method, member
     from inbetween_jax.models.interaction.data import load_pairs, split_pairs
     from inbetween_jax.models.interaction.gate import interpolation_base, window_context
@@ -41,13 +44,19 @@ def main() -> None:
     mb = MotionBank.from_pairs(fit, d.pos_scale)
     gaps = sorted({r["frames"] for r in cal})
     knn = build_bank(np.concatenate([np.c_[mb.index(n, g), np.full(len(mb.index(n, g)), g / 30)] for g in gaps]))
+    knn_pair = build_bank(np.concatenate([np.c_[mb.index(n, g), PAIR_WEIGHT * mb.pair_index(n, g),
+                                                np.full(len(mb.index(n, g)), g / 30)] for g in gaps]))
     windows = proto.table1_windows(val, d.pos_scale, 64, tuple(gaps))
-    cand = {k: [] for k in ("k-NN distance to the fit takes", "joint speed (shipped)", "keypose distance per frame",
+    cand = {k: [] for k in ("k-NN distance to the fit takes", "the same with the pair's placement",
+                            "joint speed (shipped)", "keypose distance per frame",
                             "member spread / departure")}
     for L in gaps:
         b, ctx = windows[L], windows[L]["x"][:, :, :n]
         cand["k-NN distance to the fit takes"] += list(knn.score(np.c_[match_features(ctx, b["keypose"]),
                                                                        np.full(len(ctx), L / 30)]))
+        cand["the same with the pair's placement"] += list(knn_pair.score(np.c_[
+            match_features(ctx, b["keypose"]), PAIR_WEIGHT * pair_features(b["rel_R"], b["rel_t"]),
+            np.full(len(ctx), L / 30)]))
         cand["joint speed (shipped)"] += list(-window_context(ctx)[:, 0])
         kd = np.linalg.norm(b["keypose"][..., :3] - ctx[:, :, -1, :, :3], axis=-1).mean((1, 2)) / L
         cand["keypose distance per frame"] += list(-kd)

@@ -64,14 +64,18 @@ def test_interaction_infill_without_ckpt_on_the_dancers_files_as_given(tmp_path)
     _shipped_or_skip("interaction")
     out = tmp_path / "out"
     assert main(["infill", "--model", "interaction", "--a", f"{PAIR_A}:400", "--b", f"{PAIR_B}:400",
-                 "--key-a", f"{PAIR_A}:600", "--key-b", f"{PAIR_B}:600", "--frames", "49", "--samples", "1",
+                 "--key-a", f"{PAIR_A}:600", "--key-b", f"{PAIR_B}:600", "--frames", "49", "--samples", "2",
                  "--out", str(out), "--preview"]) == 0
     assert (out / "sample_00_pair_sheet.png").exists()
     info = json.load(open(out / "infill.json"))            # the out-of-distribution gate, per window and sample
     if os.path.exists(os.path.join(shipped_dir("interaction"), "ood.npz")):
         assert info["ood_score"] > 0 and 0.0 <= info["gate_weight"] <= info["departure_weight"] <= 1.0
-        assert info["samples_ood"] == [{"ood_score": info["ood_score"], "gate_weight": info["gate_weight"],
-                                        "departure_weight": info["departure_weight"], "sample": "sample_00"}]
+        assert info["samples_ood"][0] == {"ood_score": info["ood_score"], "gate_weight": info["gate_weight"],
+                                          "departure_weight": info["departure_weight"], "sample": "sample_00"}
+        run = json.load(open(os.path.join(shipped_dir("interaction"), "run.json")))
+        if not run["config"]["model"].get("bank_sample_gated", True):  # sample 1 is left as the bank made it
+            assert info["samples_ood"][1] == {"ood_score": info["ood_score"], "gate_weight": 1.0,
+                                              "departure_weight": 1.0, "sample": "sample_01"}
     for path, name in ((PAIR_A, "sample_00_A.bvh"), (PAIR_B, "sample_00_B.bvh")):
         src, m = read_bvh(path), read_bvh(str(out / name))
         assert m.skeleton.names == src.skeleton.names and m.num_frames == 51

@@ -231,8 +231,14 @@ def infill(args, run: Run) -> InfillResult:
         if gated["departure_weight"] < 0.999:        # the cap, not the speed score, held the learned part back
             note += (f" (of which model.departure_cap keeps {gated['departure_weight']:.2f}: the fill left "
                      "interpolation by more than interpolation's own error is expected to be here)")
+        ungated = len(samples) > 1 and not trained.cfg.model.bank_sample_gated
+        if ungated and gated["gate_weight"] < 0.999:
+            note += (f"; samples 1-{len(samples) - 1} are left as the motion bank made them "
+                     "(model.bank_sample_gated=false)")
         notes.append(note)
-        summary["samples_ood"] = [dict(gated, sample=n) for n, _, _ in samples]
+        summary["samples_ood"] = [dict(gated, sample=n, **({"gate_weight": 1.0, "departure_weight": 1.0}
+                                                           if ungated and i else {}))
+                                  for i, (n, _, _) in enumerate(samples)]
     return InfillResult(samples=samples, summary=summary, what="start / keyframe", notes=list(dict.fromkeys(notes)))
 
 
