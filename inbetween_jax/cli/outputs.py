@@ -94,7 +94,7 @@ def add_samples_sheet(files: dict, motions: list, what: str = "keyframes", name:
     every = max(1, -(-t // 12))
     title = f"{who + ': ' if who else ''}{len(motions)} samples overlaid (one colour each), {what} black"
     files[f"{name}.png"] = lambda path: samples_sheet(pos, motions[0].skeleton.parents, path, every=every,
-                                                            keyframes=[0, t - 1], title=title)
+                                                      keyframes=[0, t - 1], title=title)
 
 
 def add_previews(files: dict, name: str, motions: list, generated=None, what: str = "keyframes",
