@@ -138,10 +138,11 @@ def main() -> None:
         print(f"{L} frames ({len(ctx)} windows; ground truth's score {ref:.3f})\n\n"
               "| windows | score / ground truth's |\n|---|---|")
         idx = np.argsort(d2, 1)[:, :a.k]
+        near = bank.gather(N, L, idx)
         out = {"as captured, query's placement": [], "warped, query's placement (the package's)": [],
                "as captured, the bank pair's own placement": [], "warped, the bank pair's own placement": []}
         for j in range(a.k):
-            c, i = bank.gather(N, L, idx[:, j]), idx[:, j]
+            c, i = near[:, j], idx[:, j]
             warped = bk._warped_mean(c[:, None], ctx, kp, L)
             out["as captured, query's placement"].append(scores(c[:, :, N:N + L], b).mean())
             out["warped, query's placement (the package's)"].append(scores(warped, b).mean())
@@ -155,10 +156,11 @@ def main() -> None:
         for w in (0.0, 3.0, 9.0, 27.0):
             idx = np.argsort(d2 + w ** 2 * pair_d2, 1)[:, :a.k]
             far = np.median(np.sqrt(np.take_along_axis(pair_d2, idx, 1)))
+            near = bank.gather(N, L, idx)                                     # (B, k, 2, N + L + 1, J, 9)
             for mode in ("per dancer", "B in A's space"):
                 sc, err = [], []
                 for j in range(a.k):
-                    c, i = bank.gather(N, L, idx[:, j]), idx[:, j]
+                    c, i = near[:, j], idx[:, j]
                     if mode == "per dancer":
                         warped = bk._warped_mean(c[:, None], ctx, kp, L)
                     else:                   # the pair warped together in A's space, then B back into its own

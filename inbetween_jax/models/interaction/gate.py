@@ -112,7 +112,8 @@ def gate_rollouts(gate, rollouts, context, keypose, gaps, cap: float = 0.0, coef
                                   departure_cm(np.asarray(rollouts)[0], base))
     if parts is not None:
         parts.update(speed_weight=weight, departure_weight=capped)
-    out = gate_blend(rollouts, base, weight * capped)
-    if not samples:
-        out[1:] = np.asarray(rollouts, np.float32)[1:]
+    if samples:
+        return gate_blend(rollouts, base, weight * capped), score, weight * capped
+    out = np.array(rollouts, np.float32)                       # only sample 0, the deterministic fill, is gated
+    out[:1] = gate_blend(out[:1], base, weight * capped)
     return out, score, weight * capped
