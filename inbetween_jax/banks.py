@@ -94,6 +94,14 @@ def bank_folder(run_dir: str, name: str) -> str:
     return run_dir
 
 
+def merged_switches(switches, new) -> list:
+    """``KEY=VALUE`` items: ``switches`` with each key ``new`` sets replaced by its new item, in place, then the
+    new keys after them."""
+    new = {item.split("=", 1)[0]: item for item in new}
+    out = [new.pop(item.split("=", 1)[0], item) for item in switches]
+    return out + list(new.values())
+
+
 def write_bank(run_dir: str, source: str | None = None, split: str = "fit", mirror: bool = False,
                switches=()) -> dict:
     """Build and write ``run_dir``'s bank, record it (and ``switches``) in its ``run.json``.
@@ -118,6 +126,8 @@ def write_bank(run_dir: str, source: str | None = None, split: str = "fit", mirr
         meta = json.load(f)
     if switches:
         meta["config"] = config_with_overrides(run.model, meta["config"], list(switches))
+        if "shipped" in meta:   # the export's record of its inference switches stays the config's
+            meta["shipped"]["inference"] = merged_switches(meta["shipped"].get("inference", []), switches)
     meta["bank"] = {"source": source, "split": split, "mirror": mirror, "takes": list(bank.names),
                     "frames": bank.num_frames, "switches": list(switches) or meta.get("bank", {}).get("switches", [])}
     bank_path = os.path.join(run_dir, module.BANK_FILE)

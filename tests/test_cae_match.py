@@ -221,7 +221,10 @@ def test_build_bank_shares_the_scvae_bank_beside_it(tmp_path):
         shutil.copytree(shipped_dir(m), root / m)
     out = write_bank(str(root / "cae"), switches=["model.match_k=8"])
     assert not (root / "cae" / "bank.npz").exists() and out["path"] == str(root / "scvae" / "bank.npz")
-    assert json.loads((root / "cae" / "run.json").read_text())["bank"]["shared_with"] == "scvae"
+    meta = json.loads((root / "cae" / "run.json").read_text())
+    assert meta["bank"]["shared_with"] == "scvae"
+    keys = [item.split("=", 1)[0] for item in meta["shipped"]["inference"]]
+    assert "model.match_k=8" in meta["shipped"]["inference"] and keys.count("model.match_k") == 1
     model = load(load_run(str(root / "cae")))
     assert model.match is not None and len(model.match.clips) == 171
     alone = tmp_path / "alone"

@@ -115,6 +115,28 @@ def test_export_sets_only_inference_switches(shipped, tmp_path):
     assert not os.path.exists(tmp_path / "bad" / "scvae" / "params.npz")
 
 
+@pytest.mark.parametrize("model", ["scvae", "cae", "interaction"])
+def test_shipped_switch_records_match_the_config(model):
+    """Each ``KEY=VALUE`` the shipped run.json records (export ``--set``, build-bank ``--set``) is the value its
+    config holds, read by the model's own Config (the interaction model's record said bank_sample_weight=0.5 after
+    build-bank had set 0.55)."""
+    from inbetween_jax.shipped import config_with_overrides
+    meta = json.load(open(os.path.join(PACKAGE_WEIGHTS, model, "run.json")))
+    records = meta["shipped"]["inference"] + meta.get("bank", {}).get("switches", [])
+    assert records or model == "scvae"
+    for item in records:
+        assert config_with_overrides(model, meta["config"], [item]) == config_with_overrides(
+            model, meta["config"], []), item
+
+
+def test_merged_switches_replace_in_place():
+    from inbetween_jax.banks import merged_switches
+    assert merged_switches(["model.a=1", "model.b=2"], ["model.b=3", "model.c=4"]) == [
+        "model.a=1", "model.b=3", "model.c=4"]
+    assert merged_switches([], ["model.a=1"]) == ["model.a=1"]
+    assert merged_switches(["model.a=1"], []) == ["model.a=1"]
+
+
 def test_shipped_weights_in_the_package_stay_small():
     total = sum(os.path.getsize(os.path.join(d, f)) for d, _, files in os.walk(PACKAGE_WEIGHTS) for f in files)
     assert total <= MAX_SHIPPED_MB * 1024 * 1024, f"{total / 2 ** 20:.1f} MB shipped in {PACKAGE_WEIGHTS}"
