@@ -26,7 +26,6 @@ import optax
 from inbetween_jax import shipped
 from inbetween_jax.baselines import interpolate_transition
 from inbetween_jax.data import l2p_stats, load_dataset
-from inbetween_jax.evaluation.samples import per_window_l2p, window_positions
 from inbetween_jax.geometry.quaternion import quat_inv, quat_mul, quat_rotate
 from inbetween_jax.models.scvae import infer
 from inbetween_jax.models.scvae.bank import bank_sample_blend, keyframe_space, sample_weight
@@ -34,7 +33,7 @@ from inbetween_jax.models.scvae.gate import gate_blend, keyframe_context, slerp_
 from inbetween_jax.models.scvae.timing import body_parts
 from inbetween_jax.shipped import shipped_run
 from inbetween_jax.train.run import load_run
-from scvae_sample_directions import from_rotvec, levers, rotvec, yaw_quat
+from scvae_sample_directions import TABLE_HEAD, from_rotvec, levers, rotvec, sample_errors, yaw_quat
 
 N_PAST, S = 10, 10
 
@@ -177,12 +176,9 @@ def main():
         nets[eps] = (params, mu, sd)
 
     def errors(q, r, n):
-        truth = window_positions(val, val.local_quats[:, N_PAST:N_PAST + n], val.root_pos[:, N_PAST:N_PAST + n])
-        pos = np.stack([window_positions(val, qs, rs) for qs, rs in zip(q, r)])
-        return np.linalg.norm(pos - truth, axis=-1).mean((-1, -2)), per_window_l2p(pos, truth, x_mean, x_std)
+        return sample_errors(val, q, r, n, x_mean, x_std)
 
-    print("| frames | samples | mean of 10 vs the fill | best of 10 / Slerp | where the gate falls back: mean vs fill "
-          "| best / Slerp |\n|---|---|---|---|---|---|")
+    print(TABLE_HEAD)
     for n in (10, 30, 50):
         net = infer.sample_transitions(cfg, tr.state, val, N_PAST, n, S, bank=tr.bank, sampled=False)
         k = (val.local_quats[:, N_PAST - 1], val.root_pos[:, N_PAST - 1], val.local_quats[:, N_PAST + n],

@@ -51,6 +51,18 @@ def yaw_quat(yaw):
     return quat_from_axis_angle(np.broadcast_to([0.0, 1.0, 0.0], np.shape(yaw) + (3,)), np.asarray(yaw, np.float64))
 
 
+TABLE_HEAD = ("| frames | samples | mean of 10 vs the fill | best of 10 / Slerp | where the gate falls back: mean vs "
+              "fill | best / Slerp |\n|---|---|---|---|---|---|")
+
+
+def sample_errors(ds, q, r, n, x_mean, x_std):
+    """Samples q (S, B, n, J, 4), r (S, B, n, 3) of the n-frame transitions after frame N_PAST - 1 of ``ds``:
+    mean joint error (cm) and L2P per sample and window, each (S, B)."""
+    truth = window_positions(ds, ds.local_quats[:, N_PAST:N_PAST + n], ds.root_pos[:, N_PAST:N_PAST + n])
+    pos = np.stack([window_positions(ds, qs, rs) for qs, rs in zip(q, r)])
+    return np.linalg.norm(pos - truth, axis=-1).mean((-1, -2)), per_window_l2p(pos, truth, x_mean, x_std)
+
+
 def levers(skel) -> np.ndarray:
     """(J,) per joint: the RMS distance of its descendants to it in the rest pose (cm per radian of turn)."""
     j = len(skel.parents)
@@ -99,12 +111,9 @@ def main():
         return quat_mul(q, from_rotvec(d)), r + dr
 
     def errors(q, r, n):
-        truth = window_positions(val, val.local_quats[:, N_PAST:N_PAST + n], val.root_pos[:, N_PAST:N_PAST + n])
-        pos = np.stack([window_positions(val, qs, rs) for qs, rs in zip(q, r)])
-        return np.linalg.norm(pos - truth, axis=-1).mean((-1, -2)), per_window_l2p(pos, truth, x_mean, x_std)
+        return sample_errors(val, q, r, n, x_mean, x_std)
 
-    print("| frames | samples | mean of 10 vs the fill | best of 10 / Slerp | where the gate falls back: mean vs fill "
-          "| best / Slerp |\n|---|---|---|---|---|---|")
+    print(TABLE_HEAD)
     for n in (10, 30, 50):
         net = infer.sample_transitions(cfg, tr.state, val, N_PAST, n, S, bank=tr.bank, sampled=False)
         k = keys(val, n)

@@ -34,7 +34,7 @@ for run_dir in a.run_dirs:
     run = dataclasses.replace(run, config=shipped.config_with_overrides(run.model, run.config, a.set))
     rows = validation_rows(run, a.source, num_samples=a.samples, split=a.split)
     cols = COLUMNS + RATIO_COLUMNS
-    where = a.split or "validation subjects"
+    where = a.split or ("validation subjects" if a.source == "cmu" else "validation split")
     print(markdown_table(rows, cols, f"{run_dir} {' '.join(a.set)}: {where}, {a.samples} samples "
                                      f"({time.time() - t0:.0f} s)"))
     tag = "_".join(s.replace("model.", "").replace("=", "") for s in a.set)
