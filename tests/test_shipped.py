@@ -123,7 +123,7 @@ def test_shipped_switch_records_match_the_config(model):
     from inbetween_jax.shipped import config_with_overrides
     meta = json.load(open(os.path.join(PACKAGE_WEIGHTS, model, "run.json")))
     records = meta["shipped"]["inference"] + meta.get("bank", {}).get("switches", [])
-    assert records or model == "scvae"
+    assert records
     for item in records:
         assert config_with_overrides(model, meta["config"], [item]) == config_with_overrides(
             model, meta["config"], []), item
