@@ -26,14 +26,15 @@ import optax
 from inbetween_jax import shipped
 from inbetween_jax.baselines import interpolate_transition
 from inbetween_jax.data import l2p_stats, load_dataset
-from inbetween_jax.geometry.quaternion import quat_inv, quat_mul, quat_rotate
+from inbetween_jax.geometry.quaternion import quat_mul, quat_rotate
 from inbetween_jax.models.scvae import infer
 from inbetween_jax.models.scvae.bank import bank_sample_blend, keyframe_space, sample_weight
 from inbetween_jax.models.scvae.gate import gate_blend, keyframe_context, slerp_base
 from inbetween_jax.models.scvae.timing import body_parts
 from inbetween_jax.shipped import shipped_run
 from inbetween_jax.train.run import load_run
-from scvae_sample_directions import TABLE_HEAD, from_rotvec, levers, rotvec, sample_errors, yaw_quat
+from scvae_sample_directions import (TABLE_HEAD, levers, moved_by, rotvec, sample_errors, slerp_residual,
+                                     yaw_quat)
 
 N_PAST, S = 10, 10
 
@@ -57,23 +58,6 @@ def features(ds, n, fa):
     return np.concatenate(parts, -1), yaw
 
 
-def residual(ds, n, lever, yaw):
-    """(B, n, D): truth minus Slerp, lever-weighted rotation vectors and the root's offset in facing space."""
-    q, r = ds.local_quats.astype(np.float64), ds.root_pos.astype(np.float64)
-    sq, sr = interpolate_transition(q, r, N_PAST, n)
-    d = rotvec(quat_mul(quat_inv(sq), q[:, N_PAST:N_PAST + n])) * lever
-    dr = quat_rotate(np.broadcast_to(yaw_quat(-yaw)[:, None], sr.shape[:-1] + (4,)), r[:, N_PAST:N_PAST + n] - sr)
-    return np.concatenate([d.reshape(len(q), n, -1), dr], -1)
-
-
-def moved(q, r, res, yaw, lever):
-    """q (B, n, J, 4), r (B, n, 3) moved by the residual (B, n, D) of :func:`residual`."""
-    nj = q.shape[-2]
-    d = res[..., :nj * 3].reshape(res.shape[:-1] + (nj, 3)) / np.maximum(lever, 1e-6)
-    dr = quat_rotate(np.broadcast_to(yaw_quat(yaw)[:, None], r.shape[:-1] + (4,)), res[..., nj * 3:])
-    return quat_mul(q, from_rotvec(d)), r + dr
-
-
 def gap_scale(n):
     """Coefficients are learnt over this scale, so short gaps weigh as much as long ones in the loss (Slerp's
     residual grows about linearly with the gap on the fit windows)."""
@@ -84,7 +68,7 @@ def dataset(ds, lengths, fa, lever, m):
     xs, cs = [], []
     for n in lengths:
         x, yaw = features(ds, n, fa)
-        res = residual(ds, n, lever, yaw)
+        res = slerp_residual(ds, n, lever, yaw)
         xs.append(x)
         cs.append(np.einsum("nm,bnd->bmd", sine_basis(n, m), res) * 2 / (n + 1) / gap_scale(n))
     return np.concatenate(xs).astype(np.float32), np.concatenate(cs).astype(np.float32)
@@ -203,7 +187,7 @@ def main():
             if hyp is not None:
                 for i in range(1, S):
                     res = np.einsum("nm,bmd->bnd", basis, hyp[:, i - 1]) * (lam * gap_scale(n) * (1 - w))[:, None, None]
-                    q[i], r[i] = moved(q[i], r[i], res, yaw, lever)
+                    q[i], r[i] = moved_by(q[i], r[i], res, yaw, lever)
             spread = cfg.timing_spread + (spread_fb - cfg.timing_spread) * (1 - w)
             q, r = bank_sample_blend(tr.bank, *k, q, r, sample_weight(cfg, w), spread, parts)
             cm, l2p = errors(q, r, n)

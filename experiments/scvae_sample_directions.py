@@ -63,6 +63,25 @@ def sample_errors(ds, q, r, n, x_mean, x_std):
     return np.linalg.norm(pos - truth, axis=-1).mean((-1, -2)), per_window_l2p(pos, truth, x_mean, x_std)
 
 
+def slerp_residual(ds, n, lever, yaw):
+    """(B, n, D): truth minus Slerp over the n-frame transitions after frame N_PAST - 1: each joint's rotation
+    vector times its ``lever`` (J, 1), then the root's offset in the facing space of ``yaw`` (B,)."""
+    q, r = ds.local_quats.astype(np.float64), ds.root_pos.astype(np.float64)
+    sq, sr = interpolate_transition(q, r, N_PAST, n)
+    d = rotvec(quat_mul(quat_inv(sq), q[:, N_PAST:N_PAST + n])) * lever                      # (B, n, J, 3)
+    dr = quat_rotate(np.broadcast_to(yaw_quat(-yaw)[:, None], sr.shape[:-1] + (4,)), r[:, N_PAST:N_PAST + n] - sr)
+    return np.concatenate([d.reshape(len(q), n, -1), dr], -1)
+
+
+def moved_by(q, r, res, yaw, lever):
+    """q (B, n, J, 4), r (B, n, 3) moved by a residual (B, n, D) in :func:`slerp_residual`'s form (joints with no
+    lever, the leaves, are not turned)."""
+    nj = q.shape[-2]
+    d = res[..., :nj * 3].reshape(res.shape[:-1] + (nj, 3)) / np.maximum(lever, 1e-6)
+    dr = quat_rotate(np.broadcast_to(yaw_quat(yaw)[:, None], r.shape[:-1] + (4,)), res[..., nj * 3:])
+    return quat_mul(q, from_rotvec(d)), r + dr
+
+
 def levers(skel) -> np.ndarray:
     """(J,) per joint: the RMS distance of its descendants to it in the rest pose (cm per radian of turn)."""
     j = len(skel.parents)
@@ -86,7 +105,6 @@ def main():
     fit = load_dataset("cmu", "fit-subjects", window=65, offset=20)
     x_mean, x_std = l2p_stats(val.global_pose()[1])
     lever = levers(val.skeleton)[:, None]
-    nj = len(val.skeleton.parents)
     parts = body_parts(val.skeleton) if cfg.timing_parts else None
 
     def keys(ds, n):
@@ -97,18 +115,12 @@ def main():
         return tr.gate[1].weight(tr.gate[0].score(keyframe_context(*keys(ds, n), n, ds.skeleton, fa)))
 
     def residual(ds, n):
-        q, r = ds.local_quats.astype(np.float64), ds.root_pos.astype(np.float64)
-        sq, sr = interpolate_transition(q, r, N_PAST, n)
-        d = rotvec(quat_mul(quat_inv(sq), q[:, N_PAST:N_PAST + n])) * lever                  # (B, n, J, 3)
-        yaw, _ = keyframe_space(q[:, N_PAST - 1, 0], r[:, N_PAST - 1], fa)
-        dr = quat_rotate(np.broadcast_to(yaw_quat(-yaw)[:, None], sr.shape[:-1] + (4,)), r[:, N_PAST:N_PAST + n] - sr)
-        return np.concatenate([d.reshape(len(q), n, -1), dr], -1).reshape(len(q), -1), yaw
+        yaw, _ = keyframe_space(ds.local_quats[:, N_PAST - 1, 0].astype(np.float64),
+                                ds.root_pos[:, N_PAST - 1].astype(np.float64), fa)
+        return slerp_residual(ds, n, lever, yaw).reshape(len(yaw), -1), yaw
 
     def moved(q, r, vec, yaw, n):
-        v = vec.reshape(len(q), n, nj * 3 + 3)
-        d = v[..., :nj * 3].reshape(len(q), n, nj, 3) / lever
-        dr = quat_rotate(np.broadcast_to(yaw_quat(yaw)[:, None], r.shape[:-1] + (4,)), v[..., nj * 3:])
-        return quat_mul(q, from_rotvec(d)), r + dr
+        return moved_by(q, r, vec.reshape(len(q), n, -1), yaw, lever)
 
     def errors(q, r, n):
         return sample_errors(val, q, r, n, x_mean, x_std)

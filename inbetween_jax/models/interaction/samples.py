@@ -86,8 +86,8 @@ def _scores(cls, b, pred):
 
 def sample_table(method, windows, stats, cls, num: int = 10, lengths=(30, 50), seed: int = 0) -> list:
     """Rows ``{"frames", "windows", "fill_l2p", "mean_l2p", "best_l2p", "interp_l2p", "apd_m", "pairwise_cm",
-    "score", "score_gt"}`` of ``method`` (``fill_l2p``: sample 0's, the deterministic fill) (a bench method, ``num`` samples) on ``windows[L]``; cls: (graphdef, params) of the
-    bench's interaction classifier."""
+    "score", "score_gt"}`` of ``method`` (a bench method, ``num`` samples) on ``windows[L]``; ``fill_l2p`` is
+    sample 0's, the deterministic fill; cls: (graphdef, params) of the bench's interaction classifier."""
     import jax
     from inbetween_jax.evaluation import interaction as proto
     from inbetween_jax.evaluation.samples import pairwise_joint_distance
@@ -104,8 +104,8 @@ def sample_table(method, windows, stats, cls, num: int = 10, lengths=(30, 50), s
         per = np.stack([_l2p(c, truth, std) for c in common])                              # (N, B)
         interp = window_l2p(proto.interpolation_method(b, steps, 1, None)[0][:, :, :L], b, stats)
         rows.append({"frames": L, "windows": int(per.shape[1]), "fill_l2p": float(per[0].mean()),
-                     "mean_l2p": float(per.mean()),
-                     "best_l2p": float(per.min(0).mean()), "interp_l2p": float(interp.mean()),
+                     "mean_l2p": float(per.mean()), "best_l2p": float(per.min(0).mean()),
+                     "interp_l2p": float(interp.mean()),
                      "apd_m": float(apd(common.reshape(common.shape[:2] + (-1,)))),
                      "pairwise_cm": 100.0 * pairwise_joint_distance(common),
                      "score": float(np.mean([_scores(cls, b, p).mean() for p in pred])),
