@@ -39,7 +39,8 @@ INFERENCE_SWITCHES = {"interaction": ("model.refiner", "model.latent_scale", "mo
                                 "model.timing_parts", "model.timing_spread_in_clip", "model.timing_spread_fallback"),
                       "cae": ("model.mirror_average", "model.ood_gate", "model.net_edge_fade", "model.base_edge_fade",
                               "model.root_bound", "model.root_edge_fade", "model.match_k", "model.match_lo",
-                              "model.match_hi", "model.match_disp", "model.match_departure", "model.match_speed_scale")}
+                              "model.match_hi", "model.match_disp", "model.match_departure", "model.match_speed_scale",
+                              "model.global_base_near", "model.global_base_far", "model.global_base_fade")}
 # Per model: the key-path prefixes of the train state that ``infer.load`` / inference use.
 KEEP = {"scvae": ("params", "stats"),                # generators + normalisation (disc, opt_g, opt_d dropped)
         "cae": ("params",),                          # opt_state dropped

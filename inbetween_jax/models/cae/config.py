@@ -113,6 +113,12 @@ class ModelConfig:
                                                 # body's travel beside the gap is not used (bank.departure)
     match_speed_scale: float = 0.0              # > 0: the gate reads the distance / (1 + root speed beside the gap
                                                 # / this, cm per frame) (bank.gate_distance); 0: the distance
+    global_base_near: float = 0.0               # inference, inside a file: the gate's base is the limited Hermite of
+                                                # the global joint positions where the root is expected to travel at
+                                                # most this many metres across the gap (global_base.py) ...
+    global_base_far: float = 0.0                # ... the body-frame base from this many metres, a blend between;
+                                                # 0: off (the body-frame base everywhere)
+    global_base_fade: float = 0.2               # that global Hermite's edge fade per frame (hermite_fill(edge_fade=))
 
 
 @dataclasses.dataclass(frozen=True)

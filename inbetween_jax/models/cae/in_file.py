@@ -1,8 +1,10 @@
 """The CAE inside a file, as ``inbetween infill --model cae`` fills it: per gap, the error of
 :func:`~inbetween_jax.models.cae.infer.process_motion`'s global joint positions (gate, motion matching and root bound
 as the run's config says) over three non-learned fills: its base, the fill the gate falls back to
-(:func:`~inbetween_jax.models.cae.gate.base_fill` through the same root path: the limited cubic Hermite with the
-run's edge fades, ``model.base_edge_fade`` and ``model.root_edge_fade``); the limited cubic Hermite without them
+(:func:`~inbetween_jax.models.cae.global_base.base_positions`: :func:`~inbetween_jax.models.cae.gate.base_fill`
+through the same root path, the limited cubic Hermite with the run's edge fades, ``model.base_edge_fade`` and
+``model.root_edge_fade``, moved onto the global Hermite where the body stays near its place,
+``model.global_base_near`` / ``_far``); the limited cubic Hermite without them
 (body and root path; the CAE's base until 2026-12-07, and the network's pre-fill); and straight lines between the
 global joint positions beside the gap.  The bench writes these as ``per_window`` rows of its own split names (``"test, inside a file"`` /
 ``"validation, inside a file"``).
@@ -64,6 +66,7 @@ def gap_records(model, motions, seconds=SECONDS, limit: int | None = None) -> li
     from inbetween_jax.geometry import forward_kinematics
     from inbetween_jax.models.cae.features import body_frame_features
     from inbetween_jax.models.cae.gate import base_fill
+    from inbetween_jax.models.cae.global_base import base_positions
     from inbetween_jax.models.cae.infer import process_motion
     from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
     j = model.num_joints
@@ -84,7 +87,7 @@ def gap_records(model, motions, seconds=SECONDS, limit: int | None = None) -> li
                 x = model.normalizer(feats.features).T.astype(np.float32)
                 xm = (x * mask)[None]
                 pre = base_fill(model, xm, mask[None], edge_fade=False)
-                base = gap_positions(model, base_fill(model, xm, mask[None], pre=pre)[0], feats, fm)
+                base = base_positions(model, xm[0], mask, feats, fm)
                 limited = gap_positions(model, pre[0], feats, fm, root_edge_fade=0.0)
                 w = (np.arange(1, g + 1) / (g + 1))[:, None, None]
                 straight = gp[lo - 1] + w * (gp[lo + g] - gp[lo - 1])

@@ -23,7 +23,7 @@ from inbetween_jax.data.skeleton import Skeleton
 from inbetween_jax.geometry import forward_kinematics, quat_slerp
 from inbetween_jax.errors import UserError
 from inbetween_jax.geometry.fit import fit_rotations
-from inbetween_jax.models.cae import model as cae_model
+from inbetween_jax.models.cae import global_base, model as cae_model
 from inbetween_jax.models.cae.bank import (BANK_FILE, MARGIN, MatchBank, departure, gate_distance, match_enabled,
                                            match_gap, match_weight, speed_beside)
 from inbetween_jax.models.cae.config import Config
@@ -189,6 +189,8 @@ def process_motion(model, motion, gaps=(), noise: float = 0.0, dropout: float = 
     roots = root_path_options(model.cfg.model) if gaps and hasattr(model, "cfg") else {}
     pos = to_global(y, model.normalizer, j, feats.ref0, feats.yaw0, known_feats=feats.features, frame_mask=fm,
                     known_track=(feats.ref, feats.yaw), **roots)
+    if gaps and gated and global_base.enabled(model.cfg.model):      # the base part of each gap, global
+        pos = global_base.apply(model, pos, x_in * mask, mask, feats, fm, gated)
     scored = (fm < 0.5) if gaps else np.ones(t_len, bool)     # gaps: their frames; otherwise every frame
     err = mpjpe(body_positions(y, model.normalizer, j), body_positions(x, model.normalizer, j),
                 mask=scored, root_relative=False)
@@ -272,7 +274,7 @@ def infill(args, run: Run) -> InfillResult:
     if res["gaps_ood"]:             # the gate and the match, per gap (in the order of "gaps")
         from inbetween_jax.models.ood import gate_note
         keys = ("ood_score", "knn_score", "knn_weight", "gate_weight", "match_distance", "speed_beside",
-                "match_departure", "match_weight")
+                "match_departure", "match_weight", "global_share", "global_weight")
         summary["gaps_ood"] = [dict({"gap_index": i}, **{k: g[k] for k in keys if k in g})
                                for i, g in enumerate(res["gaps_ood"])]
         for i, g in enumerate(res["gaps_ood"]):
