@@ -7,11 +7,9 @@ import os
 
 import numpy as np
 import pytest
+from conftest import LAFAN1_DIR, SHARED_DATA
 
 from inbetween_jax.models.cae.global_base import global_fill, travel_share
-
-SHARED_DATA = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "shared",
-                           "data")
 
 
 def test_global_fill_keeps_a_straight_glide_and_reads_no_gap_frame():
@@ -40,12 +38,6 @@ def test_travel_share_is_one_near_zero_far_and_linear_between():
         assert share == pytest.approx(expected, abs=1e-9), speed
 
 
-def _run_with(run, **switches):
-    from inbetween_jax.train.config import apply_overrides
-    return dataclasses.replace(run, config=apply_overrides(run.config, [f"model.{k}={v}" for k, v in
-                                                                        switches.items()]))
-
-
 @pytest.fixture(scope="module")
 def jumps_in_place():
     """``(run, motion)``: the shipped CAE and CMU 16_01 (jumps in place, 31-joint rig, 30 Hz) as infill reads it."""
@@ -62,6 +54,7 @@ def jumps_in_place():
 def test_shipped_gap_in_place_is_the_global_hermite_and_a_walk_keeps_its_base(jumps_in_place, cae_fast_walk):
     from inbetween_jax.models.cae.infer import load, process_motion
     from inbetween_jax.models.cae.masks import gap_frames
+    from inbetween_jax.shipped import config_with_overrides
     run, motion = jumps_in_place
     model = load(run)
     mc = model.cfg.model
@@ -76,7 +69,9 @@ def test_shipped_gap_in_place_is_the_global_hermite_and_a_walk_keeps_its_base(ju
     np.testing.assert_allclose(res["positions"][40:70], want[40:70], atol=1e-3)
     walk_run, walk = cae_fast_walk                                      # a walk at 1.2 m/s: 1.2 m a second
     on = process_motion(load(walk_run), walk, [(20, 50)])
-    off = process_motion(load(_run_with(walk_run, global_base_far=0.0)), walk, [(20, 50)])
+    off_run = dataclasses.replace(walk_run, config=config_with_overrides("cae", walk_run.config,
+                                                                           ["model.global_base_far=0"]))
+    off = process_motion(load(off_run), walk, [(20, 50)])
     assert on["gaps_ood"][0]["global_share"] == 0.0
     np.testing.assert_array_equal(on["positions"], off["positions"])
 
@@ -87,13 +82,13 @@ def _base_errors(model, motion, gaps):
     from inbetween_jax.models.cae.global_base import base_positions
     from inbetween_jax.models.cae.masks import frame_mask_image, gap_frames
     body_model = dataclasses.replace(model.cfg.model, global_base_far=0.0)
+    model.cfg = dataclasses.replace(model.cfg, model=body_model)          # base_positions: the body-frame base
     out = []
     for a, b in gaps:
         fm = gap_frames(motion.num_frames, [(a, b)])
         feats = body_frame_features(motion, known=fm > 0.5)
         mask = frame_mask_image(fm, model.num_joints)
         xm = model.normalizer(feats.features).T.astype(np.float32) * mask
-        model.cfg = dataclasses.replace(model.cfg, model=body_model)
         body = base_positions(model, xm, mask, feats, fm)
         glob = global_fill(feats.global_pos, fm, body_model.global_base_fade)
         truth = feats.global_pos[a:b]
@@ -113,7 +108,7 @@ def test_global_fill_beats_the_body_frame_base_in_place_and_on_the_floor(jumps_i
     jumps = _base_errors(model, motion, [(a, a + 30) for a in range(10, motion.num_frames - 40, 30)])
     ratio = jumps[:, 1] / jumps[:, 0]                                   # 1-s gaps every second
     assert len(ratio) >= 8 and ratio.mean() < 0.97 and (ratio < 1.0).mean() >= 0.7, ratio
-    path = os.path.join(SHARED_DATA, "lafan1", "fallAndGetUp1_subject1.bvh")
+    path = os.path.join(LAFAN1_DIR, "fallAndGetUp1_subject1.bvh")
     if not os.path.exists(path):
         pytest.skip("needs ../shared/data/lafan1")
     fall = prepare(read_bvh(path), path, Skeleton.from_dict(run.skeleton), run.fps).motion

@@ -51,12 +51,12 @@ def global_fill(global_pos, frame_mask, edge_fade: float) -> np.ndarray:
     return np.asarray(filled, np.float32).T.reshape(t, j, 3)
 
 
-def _body_base(model, x_masked, mask, feats, frame_mask) -> np.ndarray:
-    """(T, J, 3) the gate's body-frame base (:func:`.gate.base_fill`) as ``infill`` puts it back in global
-    positions (the run's root path)."""
+def _body_base(model, x_masked, mask, feats, frame_mask, pre=None) -> np.ndarray:
+    """(T, J, 3) the gate's body-frame base (:func:`.gate.base_fill`; ``pre``: its pre-fill (1, D, T) when the
+    caller has it) as ``infill`` puts it back in global positions (the run's root path)."""
     from inbetween_jax.models.cae.features import root_path_options, to_global
     from inbetween_jax.models.cae.gate import base_fill
-    base = base_fill(model, np.asarray(x_masked, np.float32)[None], np.asarray(mask, np.float32)[None])[0]
+    base = base_fill(model, np.asarray(x_masked, np.float32)[None], np.asarray(mask, np.float32)[None], pre=pre)[0]
     return to_global(base, model.normalizer, model.num_joints, feats.ref0, feats.yaw0, known_feats=feats.features,
                      frame_mask=frame_mask, known_track=(feats.ref, feats.yaw), **root_path_options(model.cfg.model))
 
@@ -67,11 +67,12 @@ def _shares(model_cfg, ref, frame_mask) -> list:
     return [(int(a), int(b), travel_share(ref, a, b, near, far)) for a, b in gap_ranges(frame_mask)]
 
 
-def base_positions(model, x_masked, mask, feats, frame_mask) -> np.ndarray:
+def base_positions(model, x_masked, mask, feats, frame_mask, pre=None) -> np.ndarray:
     """(T, J, 3) the run's base for every gap in global positions: the body-frame base, with the global fill's
     share where ``model.global_base_far`` > 0.  x_masked, mask (D, T): the normalised masked clip and its mask;
-    feats: the file's :class:`~inbetween_jax.models.cae.features.MotionFeatures`; frame_mask (T,) 1 = known."""
-    body = _body_base(model, x_masked, mask, feats, frame_mask)
+    feats: the file's :class:`~inbetween_jax.models.cae.features.MotionFeatures`; frame_mask (T,) 1 = known;
+    pre: the network's pre-fill (1, D, T) (``base_fill(..., edge_fade=False)``) when the caller has it."""
+    body = _body_base(model, x_masked, mask, feats, frame_mask, pre)
     mc = model.cfg.model
     if not enabled(mc):
         return body

@@ -87,7 +87,7 @@ def gap_records(model, motions, seconds=SECONDS, limit: int | None = None) -> li
                 x = model.normalizer(feats.features).T.astype(np.float32)
                 xm = (x * mask)[None]
                 pre = base_fill(model, xm, mask[None], edge_fade=False)
-                base = base_positions(model, xm[0], mask, feats, fm)
+                base = base_positions(model, xm[0], mask, feats, fm, pre=pre)
                 limited = gap_positions(model, pre[0], feats, fm, root_edge_fade=0.0)
                 w = (np.arange(1, g + 1) / (g + 1))[:, None, None]
                 straight = gp[lo - 1] + w * (gp[lo + g] - gp[lo - 1])
